@@ -1,0 +1,38 @@
+# Two commands do everything on a fresh machine: `make demo` and `make test`.
+# Each creates or refreshes .venv from requirements.txt, builds the package with colcon and sets the
+# environment (scripts/env.sh). Re-running is fast: nothing is reinstalled or rebuilt unless its inputs changed.
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eo pipefail -c
+PYTHON ?= python3
+VENV := .venv
+VENV_STAMP := $(VENV)/.requirements.txt
+BUILD_STAMP := install/.build-stamp
+ENV := source scripts/env.sh &&
+DEMO_OUT ?= out/demo
+PYTEST_ARGS ?=
+
+.PHONY: demo test build venv clean
+
+demo: $(BUILD_STAMP)
+	$(ENV) python -m infinihand_ros.demo --out $(DEMO_OUT)
+
+test: $(BUILD_STAMP)
+	$(ENV) colcon test --base-paths . --event-handlers console_direct+ \
+	  --return-code-on-test-failure --pytest-args $(PYTEST_ARGS)
+
+venv: $(VENV_STAMP)
+
+build: $(BUILD_STAMP)
+
+$(VENV_STAMP): requirements.txt
+	@test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
+	$(VENV)/bin/python -m pip install --quiet --disable-pip-version-check -r requirements.txt
+	cp requirements.txt $(VENV_STAMP)
+
+$(BUILD_STAMP): $(VENV_STAMP) setup.py setup.cfg package.xml $(wildcard config/* msg_schemas/msg/* data/*)
+	$(ENV) colcon build --base-paths . --symlink-install --event-handlers console_cohesion-
+	touch $(BUILD_STAMP)
+
+clean:
+	rm -rf build install log

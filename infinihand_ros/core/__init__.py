@@ -1,0 +1,1 @@
+"""Pure core: types, hand conventions, geometry and errors (no ROS, no model)."""

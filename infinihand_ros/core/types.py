@@ -1,0 +1,220 @@
+"""Dataclasses at the project's boundaries: intrinsics, camera pose, MANO params, hands, frames.
+
+Units are metres, radians and nanosecond timestamps; the camera frame is OpenCV optical and poses
+are camera-to-world (``T_world_cam``).
+"""
+
+from dataclasses import dataclass, field
+
+from infinihand_ros.core import geometry
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.hand_conventions import (NUM_BETAS, NUM_HAND_POSE_JOINTS, NUM_JOINTS,
+                                                  side_name)
+from infinihand_ros.core.validation import as_array
+import numpy as np
+
+
+@dataclass(frozen=True)
+class Intrinsics:
+    """Pinhole intrinsics of one image (pixels), principal point anywhere."""
+
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    width: int
+    height: int
+
+    def __post_init__(self) -> None:
+        values = as_array([self.fx, self.fy, self.cx, self.cy],
+                          'intrinsics (fx, fy, cx, cy)', (4,))
+        if values[0] <= 0 or values[1] <= 0:
+            raise InputError(
+                f'intrinsics: focal lengths must be positive, got fx={self.fx}, fy={self.fy}')
+        if int(self.width) <= 0 or int(self.height) <= 0:
+            raise InputError(
+                f'intrinsics: image size must be positive, got {self.width}x{self.height}')
+
+    @classmethod
+    def from_matrix(cls, matrix: np.ndarray, width: int, height: int) -> 'Intrinsics':
+        """Build from a 3x3 K and the image size in pixels."""
+        k = as_array(matrix, 'intrinsics matrix K', (3, 3))
+        return cls(float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]),
+                   int(width), int(height))
+
+    @classmethod
+    def from_fov(cls, fov_h_rad: float, fov_w_rad: float, width: int, height: int) -> 'Intrinsics':
+        """Build from vertical/horizontal FoV (radians) with the principal point at the centre."""
+        if not (0.0 < fov_h_rad < np.pi and 0.0 < fov_w_rad < np.pi):
+            raise InputError(
+                f'field of view must be in (0, pi) radians, got h={fov_h_rad}, w={fov_w_rad}')
+        return cls(float(geometry.focal_from_fov(fov_w_rad, width)),
+                   float(geometry.focal_from_fov(fov_h_rad, height)),
+                   width / 2.0, height / 2.0, int(width), int(height))
+
+    def matrix(self) -> np.ndarray:
+        """Return K as a float64 3x3 array."""
+        return np.array([[self.fx, 0.0, self.cx], [0.0, self.fy, self.cy], [0.0, 0.0, 1.0]])
+
+    def fov(self) -> tuple[float, float]:
+        """Return (fov_h, fov_w) in radians, as in the model's pose encoding."""
+        return (float(geometry.fov_from_focal(self.fy, self.height)),
+                float(geometry.fov_from_focal(self.fx, self.width)))
+
+
+@dataclass(frozen=True)
+class CameraPose:
+    """Camera-to-world pose ``T_world_cam``: ``p_world = rotation @ p_cam + translation``."""
+
+    rotation: np.ndarray
+    translation: np.ndarray
+
+    def __post_init__(self) -> None:
+        rot = as_array(self.rotation, 'camera rotation', (3, 3))
+        if not np.allclose(rot @ rot.T, np.eye(3), atol=1e-5) or np.linalg.det(rot) <= 0:
+            raise InputError(
+                'camera rotation: not a proper rotation matrix (R R^T != I or det <= 0)')
+        object.__setattr__(self, 'rotation', rot)
+        object.__setattr__(self, 'translation',
+                           as_array(self.translation, 'camera translation', (3,)))
+
+    @classmethod
+    def identity(cls) -> 'CameraPose':
+        """Return the world-frame camera (identity pose)."""
+        return cls(np.eye(3), np.zeros(3))
+
+    @classmethod
+    def from_matrix(cls, matrix: np.ndarray) -> 'CameraPose':
+        """Build from a 4x4 camera-to-world matrix."""
+        mat = as_array(matrix, 'camera pose matrix', (4, 4))
+        return cls(mat[:3, :3], mat[:3, 3])
+
+    @classmethod
+    def from_quaternion(cls, quaternion_xyzw: np.ndarray, translation: np.ndarray) -> 'CameraPose':
+        """Build from an (x, y, z, w) quaternion and a translation in metres."""
+        quat = as_array(quaternion_xyzw, 'camera quaternion (x, y, z, w)', (4,))
+        if np.linalg.norm(quat) < 1e-9:
+            raise InputError('camera quaternion: zero quaternion; pass a unit (x, y, z, w)')
+        return cls(geometry.quaternion_xyzw_to_matrix(quat), translation)
+
+    def matrix(self) -> np.ndarray:
+        """Return the 4x4 camera-to-world matrix."""
+        return geometry.make_transform(self.rotation, self.translation)
+
+    def quaternion_xyzw(self) -> np.ndarray:
+        """Return the rotation as an (x, y, z, w) quaternion with w >= 0."""
+        return geometry.matrix_to_quaternion_xyzw(self.rotation)
+
+    def inverse_matrix(self) -> np.ndarray:
+        """Return ``T_cam_world`` as a 4x4 matrix."""
+        return geometry.invert_transform(self.matrix())
+
+    def to_world(self, points_cam: np.ndarray) -> np.ndarray:
+        """Map camera-frame points (..., 3) to the world frame."""
+        return np.asarray(points_cam) @ self.rotation.T + self.translation
+
+
+@dataclass(frozen=True)
+class ManoParams:
+    """MANO parameters of one hand, in one frame (camera or world).
+
+    Attributes:
+        global_orient: (3,) axis-angle, radians.
+        hand_pose: (15, 3) axis-angle per joint, relative to the flat hand.
+        betas: (10,) shape coefficients.
+        transl: (3,) translation, metres.
+
+    """
+
+    global_orient: np.ndarray
+    hand_pose: np.ndarray
+    betas: np.ndarray
+    transl: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, 'global_orient',
+                           as_array(self.global_orient, 'MANO global_orient', (3,)))
+        object.__setattr__(self, 'hand_pose', as_array(
+            self.hand_pose, 'MANO hand_pose', (NUM_HAND_POSE_JOINTS, 3)))
+        object.__setattr__(self, 'betas', as_array(self.betas, 'MANO betas', (NUM_BETAS,)))
+        object.__setattr__(self, 'transl', as_array(self.transl, 'MANO transl', (3,)))
+
+    @classmethod
+    def zeros(cls) -> 'ManoParams':
+        """Return the flat mean hand at the origin."""
+        return cls(np.zeros(3), np.zeros((NUM_HAND_POSE_JOINTS, 3)), np.zeros(NUM_BETAS),
+                   np.zeros(3))
+
+
+@dataclass(frozen=True)
+class HandState:
+    """One detected hand in one frame.
+
+    Attributes:
+        side: 0 left, 1 right.
+        mano_cam: MANO parameters in the camera frame.
+        joints_cam: (21, 3) joints in the camera frame, metres, OpenPose order.
+        joints_2d: (21, 2) joints in image pixels.
+        box_xyxy: (4,) box in pixels (x0, y0, x1, y1).
+        confidence: presence score in [0, 1].
+        mano_world: MANO parameters in the world frame, when the camera pose is known.
+        joints_world: (21, 3) joints in the world frame, metres, when the camera pose is known.
+
+    """
+
+    side: int
+    mano_cam: ManoParams
+    joints_cam: np.ndarray
+    joints_2d: np.ndarray
+    box_xyxy: np.ndarray
+    confidence: float
+    mano_world: ManoParams | None = None
+    joints_world: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        side_name(self.side)
+        object.__setattr__(self, 'joints_cam',
+                           as_array(self.joints_cam, 'hand joints_cam', (NUM_JOINTS, 3)))
+        object.__setattr__(self, 'joints_2d',
+                           as_array(self.joints_2d, 'hand joints_2d', (NUM_JOINTS, 2)))
+        object.__setattr__(self, 'box_xyxy', as_array(self.box_xyxy, 'hand box_xyxy', (4,)))
+        if not 0.0 <= self.confidence <= 1.0:
+            raise InputError(f'hand confidence must be in [0, 1], got {self.confidence}')
+        if self.joints_world is not None:
+            object.__setattr__(self, 'joints_world',
+                               as_array(self.joints_world, 'hand joints_world', (NUM_JOINTS, 3)))
+
+
+@dataclass(frozen=True)
+class FrameResult:
+    """Everything estimated for one input frame.
+
+    Attributes:
+        timestamp_ns: the source image's stamp (never the processing time).
+        frame_index: 0-based index in the stream.
+        camera_pose: camera-to-world pose in the world frame (the first anchor camera).
+        intrinsics: the intrinsics used for this frame (given or predicted).
+        hands: detected hands, at most one per side.
+        is_keyframe: whether the frame entered the streaming memory.
+        depth: (H, W) float32 depth in metres for keyframes, else None.
+        metric_scale: factor applied to the model's camera translations (1.0 when unknown).
+
+    """
+
+    timestamp_ns: int
+    frame_index: int
+    camera_pose: CameraPose
+    intrinsics: Intrinsics
+    hands: tuple[HandState, ...] = field(default_factory=tuple)
+    is_keyframe: bool = False
+    depth: np.ndarray | None = None
+    metric_scale: float = 1.0
+
+    def __post_init__(self) -> None:
+        sides = [hand.side for hand in self.hands]
+        if len(sides) != len(set(sides)):
+            raise InputError(f'frame {self.frame_index}: more than one hand per side ({sides})')
+
+    def hand(self, side: int) -> HandState | None:
+        """Return the hand of ``side`` or None when it was not detected."""
+        return next((hand for hand in self.hands if hand.side == side), None)

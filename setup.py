@@ -1,0 +1,32 @@
+"""Build script of the infinihand_ros ament_python package."""
+
+from glob import glob
+
+from setuptools import find_packages, setup
+
+PACKAGE_NAME = 'infinihand_ros'
+
+setup(
+    name=PACKAGE_NAME,
+    version='0.1.0',
+    packages=find_packages(include=[PACKAGE_NAME, f'{PACKAGE_NAME}.*']),
+    data_files=[
+        ('share/ament_index/resource_index/packages', [f'resource/{PACKAGE_NAME}']),
+        (f'share/{PACKAGE_NAME}', ['package.xml']),
+        (f'share/{PACKAGE_NAME}/config', glob('config/*.yaml') + glob('config/*.xml')),
+        (f'share/{PACKAGE_NAME}/msg_schemas/msg', glob('msg_schemas/msg/*.msg')),
+        (f'share/{PACKAGE_NAME}/data', glob('data/*.mcap') + glob('data/*.yaml')),
+    ],
+    install_requires=['setuptools'],
+    extras_require={'test': ['pytest']},
+    zip_safe=True,
+    maintainer='infinihand_ros maintainers',
+    maintainer_email='maintainers@infinihand-ros.org',
+    description='Streaming world-space 3D hands and camera trajectories from egocentric video.',
+    license='Apache-2.0',
+    entry_points={
+        'console_scripts': [
+            f'synth = {PACKAGE_NAME}.synth.cli:main',
+        ],
+    },
+)

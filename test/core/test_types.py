@@ -1,0 +1,69 @@
+"""Tests of the boundary dataclasses: construction, conversions and input errors."""
+
+from infinihand_ros.core import geometry
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.types import CameraPose, FrameResult, HandState, Intrinsics, ManoParams
+import numpy as np
+import pytest
+
+
+def test_intrinsics_matrix_and_fov_round_trip() -> None:
+    intr = Intrinsics.from_fov(np.radians(60.0), np.radians(90.0), 518, 378)
+    # Horizontal 90 degrees over 518 px: fx = 259 / tan(45 deg) = 259.
+    assert intr.fx == pytest.approx(259.0)
+    assert intr.cx == 259.0 and intr.cy == 189.0
+    fov_h, fov_w = intr.fov()
+    assert fov_h == pytest.approx(np.radians(60.0)) and fov_w == pytest.approx(np.radians(90.0))
+    again = Intrinsics.from_matrix(intr.matrix(), 518, 378)
+    assert again == intr
+
+
+@pytest.mark.parametrize('bad', [{'fx': np.nan}, {'fx': -1.0}, {'width': 0}])
+def test_intrinsics_reject_bad_values(bad: dict) -> None:
+    values = {'fx': 500.0, 'fy': 500.0, 'cx': 10.0, 'cy': 10.0, 'width': 20, 'height': 20} | bad
+    with pytest.raises(InputError, match='intrinsics'):
+        Intrinsics(**values)
+
+
+def test_camera_pose_maps_points_and_quaternion(rng: np.random.Generator) -> None:
+    rotation = geometry.axis_angle_to_matrix(rng.normal(size=3))
+    pose = CameraPose(rotation, [1.0, 2.0, 3.0])
+    point = rng.normal(size=3)
+    np.testing.assert_allclose(pose.to_world(point), rotation @ point + [1, 2, 3])
+    np.testing.assert_allclose(pose.inverse_matrix() @ pose.matrix(), np.eye(4), atol=1e-12)
+    again = CameraPose.from_quaternion(pose.quaternion_xyzw(), pose.translation)
+    np.testing.assert_allclose(again.rotation, rotation, atol=1e-12)
+
+
+def test_camera_pose_rejects_non_rotations() -> None:
+    with pytest.raises(InputError, match='not a proper rotation'):
+        CameraPose(np.diag([1.0, 1.0, -1.0]), np.zeros(3))
+    with pytest.raises(InputError, match='NaN'):
+        CameraPose(np.eye(3), [0.0, np.nan, 0.0])
+    with pytest.raises(InputError, match='zero quaternion'):
+        CameraPose.from_quaternion(np.zeros(4), np.zeros(3))
+
+
+def _hand(side: int) -> HandState:
+    return HandState(side=side, mano_cam=ManoParams.zeros(), joints_cam=np.zeros((21, 3)),
+                     joints_2d=np.zeros((21, 2)), box_xyxy=[0, 0, 10, 10], confidence=0.9)
+
+
+def test_mano_params_and_hand_validation() -> None:
+    with pytest.raises(InputError, match=r'MANO hand_pose: expected shape \(15, 3\)'):
+        ManoParams(np.zeros(3), np.zeros(45), np.zeros(10), np.zeros(3))
+    with pytest.raises(InputError, match='confidence'):
+        HandState(side=0, mano_cam=ManoParams.zeros(), joints_cam=np.zeros((21, 3)),
+                  joints_2d=np.zeros((21, 2)), box_xyxy=[0, 0, 1, 1], confidence=1.5)
+    with pytest.raises(ValueError, match='hand side'):
+        _hand(3)
+
+
+def test_frame_result_finds_hands_and_rejects_duplicates() -> None:
+    intr = Intrinsics(100.0, 100.0, 50.0, 50.0, 100, 100)
+    frame = FrameResult(timestamp_ns=5, frame_index=0, camera_pose=CameraPose.identity(),
+                        intrinsics=intr, hands=(_hand(1),))
+    assert frame.hand(1) is not None and frame.hand(0) is None
+    with pytest.raises(InputError, match='more than one hand per side'):
+        FrameResult(timestamp_ns=5, frame_index=0, camera_pose=CameraPose.identity(),
+                    intrinsics=intr, hands=(_hand(1), _hand(1)))
