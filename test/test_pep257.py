@@ -8,8 +8,8 @@ ROOT = Path(__file__).resolve().parents[1]
 CHECKED_PATHS = [ROOT / name for name in ('infinihand_ros', 'test', 'benchmarks')
                  if (ROOT / name).exists()]
 #: ament's convention plus Google-style docstrings (STYLE.md): the summary sits on the first line
-#: (D213 off; ament already ignores D212) and sections are written 'Args:' without dashed underlines
-#: (D406, D407 off).
+#: (D213 off; ament already ignores D212) and sections are written 'Args:' without dashed
+#: underlines (D406, D407 off).
 GOOGLE_STYLE_IGNORES = ['D213', 'D406', 'D407']
 
 

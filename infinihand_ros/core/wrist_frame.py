@@ -14,8 +14,11 @@ operator-to-MANO axis permutation per side:
 from typing import Final
 
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.core.hand_conventions import (LEFT, NUM_JOINTS, RIGHT, side_name,
-                                                  WRIST_FRAME_JOINTS)
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import NUM_JOINTS
+from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.core.hand_conventions import side_name
+from infinihand_ros.core.hand_conventions import WRIST_FRAME_JOINTS
 from infinihand_ros.core.validation import as_array
 import numpy as np
 

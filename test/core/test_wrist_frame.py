@@ -2,8 +2,10 @@
 
 from infinihand_ros.core import geometry
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.core.hand_conventions import LEFT, RIGHT
-from infinihand_ros.core.wrist_frame import estimate_wrist_frame, keypoints_in_wrist_frame
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.core.wrist_frame import estimate_wrist_frame
+from infinihand_ros.core.wrist_frame import keypoints_in_wrist_frame
 import numpy as np
 import pytest
 

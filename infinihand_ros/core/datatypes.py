@@ -4,12 +4,15 @@ Units are metres, radians and nanosecond timestamps; the camera frame is OpenCV 
 are camera-to-world (``T_world_cam``).
 """
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
+from dataclasses import field
 
 from infinihand_ros.core import geometry
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.core.hand_conventions import (NUM_BETAS, NUM_HAND_POSE_JOINTS, NUM_JOINTS,
-                                                  side_name)
+from infinihand_ros.core.hand_conventions import NUM_BETAS
+from infinihand_ros.core.hand_conventions import NUM_HAND_POSE_JOINTS
+from infinihand_ros.core.hand_conventions import NUM_JOINTS
+from infinihand_ros.core.hand_conventions import side_name
 from infinihand_ros.core.validation import as_array
 import numpy as np
 

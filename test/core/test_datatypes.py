@@ -1,8 +1,12 @@
 """Tests of the boundary dataclasses: construction, conversions and input errors."""
 
 from infinihand_ros.core import geometry
+from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.core.datatypes import FrameResult
+from infinihand_ros.core.datatypes import HandState
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.core.types import CameraPose, FrameResult, HandState, Intrinsics, ManoParams
 import numpy as np
 import pytest
 
