@@ -1,0 +1,89 @@
+"""sensor_msgs Image and CameraInfo <-> numpy images and ``Intrinsics``.
+
+Builders take a rosbags typestore; the readers only use message attributes, so they accept rosbags
+messages and rclpy messages alike.
+"""
+
+from typing import Any, Final
+
+from infinihand_ros.bag.messages import stamp_from_ns
+from infinihand_ros.bag.typestore import CAMERA_INFO_MSG
+from infinihand_ros.bag.typestore import HEADER_MSG
+from infinihand_ros.bag.typestore import IMAGE_MSG
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.errors import InputError
+import numpy as np
+from rosbags.typesys.store import Typestore
+
+#: Channels of each supported encoding; images inside the core are always RGB uint8.
+ENCODING_CHANNELS: Final = {'rgb8': 3, 'bgr8': 3, 'mono8': 1}
+DISTORTION_MODEL: Final = 'plumb_bob'
+
+
+def image_to_msg(typestore: Typestore, rgb: np.ndarray, timestamp_ns: int, frame_id: str) -> Any:
+    """Build an rgb8 ``sensor_msgs/msg/Image`` from an (H, W, 3) uint8 array."""
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
+        raise InputError(f'image: expected (H, W, 3) uint8 RGB, got {rgb.shape} {rgb.dtype}')
+    height, width = rgb.shape[:2]
+    header = typestore.types[HEADER_MSG](stamp=stamp_from_ns(typestore, timestamp_ns),
+                                         frame_id=frame_id)
+    return typestore.types[IMAGE_MSG](
+        header=header, height=height, width=width, encoding='rgb8', is_bigendian=0,
+        step=width * 3, data=np.ascontiguousarray(rgb).reshape(-1))
+
+
+def msg_to_image(msg: Any) -> np.ndarray:
+    """Return an Image message's pixels as (H, W, 3) uint8 RGB.
+
+    Raises:
+        InputError: for an unsupported encoding, an empty image or a size/step mismatch.
+
+    """
+    encoding = str(msg.encoding)
+    if encoding not in ENCODING_CHANNELS:
+        raise InputError(f'image encoding {encoding!r} is not supported; publish one of '
+                         f'{sorted(ENCODING_CHANNELS)}')
+    height, width, step = int(msg.height), int(msg.width), int(msg.step)
+    channels = ENCODING_CHANNELS[encoding]
+    if height == 0 or width == 0:
+        raise InputError(f'image is empty ({width}x{height})')
+    data = np.frombuffer(memoryview(msg.data), dtype=np.uint8)
+    if step < width * channels or data.size < step * height:
+        raise InputError(f'image {width}x{height} {encoding}: step {step} and {data.size} bytes '
+                         f'do not hold the pixels')
+    pixels = data[:step * height].reshape(height, step)[:, :width * channels]
+    pixels = pixels.reshape(height, width, channels)
+    if encoding == 'bgr8':
+        return np.ascontiguousarray(pixels[:, :, ::-1])
+    if encoding == 'mono8':
+        return np.repeat(pixels, 3, axis=2)
+    return pixels
+
+
+def camera_info_to_msg(typestore: Typestore, intrinsics: Intrinsics, timestamp_ns: int,
+                       frame_id: str) -> Any:
+    """Build a ``sensor_msgs/msg/CameraInfo`` for an undistorted pinhole camera."""
+    k = intrinsics.matrix()
+    projection = np.hstack([k, np.zeros((3, 1))])
+    header = typestore.types[HEADER_MSG](stamp=stamp_from_ns(typestore, timestamp_ns),
+                                         frame_id=frame_id)
+    roi = typestore.types['sensor_msgs/msg/RegionOfInterest'](
+        x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
+    return typestore.types[CAMERA_INFO_MSG](
+        header=header, height=intrinsics.height, width=intrinsics.width,
+        distortion_model=DISTORTION_MODEL, d=np.zeros(5), k=k.reshape(-1), r=np.eye(3).reshape(-1),
+        p=projection.reshape(-1), binning_x=0, binning_y=0, roi=roi)
+
+
+def camera_info_to_intrinsics(msg: Any) -> Intrinsics:
+    """Read ``Intrinsics`` from a CameraInfo message.
+
+    Raises:
+        InputError: when K is all zeros (uncalibrated), holds NaN, or the size is zero.
+
+    """
+    k = np.asarray(msg.k, dtype=np.float64).reshape(3, 3)
+    if not np.any(k):
+        raise InputError('camera_info: K is all zeros (camera not calibrated); calibrate it or '
+                         'let the model predict the field of view')
+    return Intrinsics.from_matrix(k, int(msg.width), int(msg.height))
