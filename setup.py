@@ -2,7 +2,8 @@
 
 from glob import glob
 
-from setuptools import find_packages, setup
+from setuptools import find_packages
+from setuptools import setup
 
 PACKAGE_NAME = 'infinihand_ros'
 
