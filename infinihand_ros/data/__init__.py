@@ -1,0 +1,1 @@
+"""Datasets: the training-sample format and its PyTorch loader."""

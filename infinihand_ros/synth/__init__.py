@@ -1,0 +1,1 @@
+"""Synthetic egocentric sequences with exact ground truth: scenes, camera motion, rendering."""

@@ -1,0 +1,204 @@
+"""Smooth reach/grasp motions of two hands in the scene's world frame (z up, table top known).
+
+Each hand moves between keyframes a second or two apart. A keyframe is a reach to a point on the
+table (grasp: fingers close on arrival), a hover in front of the head (fingers relaxed) or a rest
+low by the body (often out of view). Positions and orientations are world-anchored, so hand motion
+and head motion are independent; between keyframes positions follow minimum-jerk profiles and
+orientations are slerped with the same profile. Poses are MANO parameters of the built-in hand.
+"""
+
+from dataclasses import dataclass
+from typing import Final
+
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import NUM_BETAS
+from infinihand_ros.core.hand_conventions import NUM_HAND_POSE_JOINTS
+from infinihand_ros.mano.mirror import mirror_axis_angle
+from infinihand_ros.synth.scene import Scene
+import numpy as np
+from scipy.spatial.transform import Rotation
+from scipy.spatial.transform import Slerp
+
+#: Seconds between hand keyframes.
+KEYFRAME_GAP_S: Final = (1.0, 2.2)
+#: Probabilities of the keyframe kinds (reach to the table, hover in view, rest by the body).
+KIND_PROBABILITIES: Final = {'grasp': 0.55, 'hover': 0.33, 'rest': 0.12}
+#: Reach targets on the table lie at most this far (horizontally) from the head (m).
+MAX_REACH_M: Final = 0.65
+#: Wrist height above the table top when grasping (m).
+GRASP_HEIGHT_M: Final = (0.08, 0.14)
+#: Hover point relative to the head: forward, sideways (per side), downwards (m).
+HOVER_FORWARD_M: Final = (0.30, 0.50)
+HOVER_SIDE_M: Final = (0.05, 0.22)
+HOVER_DOWN_M: Final = (0.20, 0.42)
+#: Rest point relative to the head: sideways and downwards (m).
+REST_SIDE_M: Final = 0.25
+REST_DOWN_M: Final = 0.75
+#: Finger flexion (degrees) per joint level (proximal, middle, distal) when open and when closed.
+OPEN_FLEX_DEG: Final = (8.0, 10.0, 6.0)
+GRASP_FLEX_DEG: Final = (55.0, 70.0, 40.0)
+#: Thumb flexion (degrees) per joint when open and when closed.
+THUMB_OPEN_DEG: Final = (5.0, 5.0, 5.0)
+THUMB_GRASP_DEG: Final = (25.0, 35.0, 35.0)
+#: Flexion axis of the long fingers and of the thumb in the right hand's canonical frame
+#: (fingers along -x, palm facing -y, thumb towards +z: flexion turns -x towards -y).
+FINGER_FLEX_AXIS: Final = np.array([0.0, 0.0, 1.0])
+THUMB_FLEX_AXIS: Final = np.array([0.64, 0.0, 0.77]) / np.linalg.norm([0.64, 0.0, 0.77])
+#: Random roll and pitch of the palm around its nominal orientation (degrees, 1 sigma).
+ORIENTATION_JITTER_DEG: Final = 18.0
+#: Capsule radius (m) at the wrist, MCP, PIP, DIP and tip joints of the mean hand.
+JOINT_RADII_M: Final = (0.024, 0.011, 0.0095, 0.0085, 0.0075)
+#: Skin tones (RGB) to draw from; a per-sequence jitter is added.
+SKIN_TONES: Final = ((233, 192, 160), (224, 172, 136), (198, 134, 96), (161, 102, 70),
+                     (120, 76, 52), (245, 210, 185))
+#: Standard deviation of the hand shape coefficients drawn per sequence.
+BETA_SIGMA: Final = 0.8
+
+
+@dataclass(frozen=True)
+class HandTrack:
+    """One hand's motion over a sequence, in the scene's world frame.
+
+    Attributes:
+        side: 0 left, 1 right.
+        global_orient: (T, 3) axis-angle of the hand in the scene frame.
+        hand_pose: (T, 15, 3) axis-angle articulation (MANO order, flat-hand relative).
+        betas: (10,) shape, constant over the sequence.
+        transl: (T, 3) MANO translation in the scene frame (m).
+        radii: (21,) capsule radius per joint (m), OpenPose order.
+        skin_rgb: skin colour.
+
+    """
+
+    side: int
+    global_orient: np.ndarray
+    hand_pose: np.ndarray
+    betas: np.ndarray
+    transl: np.ndarray
+    radii: np.ndarray
+    skin_rgb: tuple[int, int, int]
+
+
+def minimum_jerk(tau: np.ndarray) -> np.ndarray:
+    """Minimum-jerk profile ``10 t^3 - 15 t^4 + 6 t^5`` on [0, 1]."""
+    tau = np.clip(tau, 0.0, 1.0)
+    return tau ** 3 * (10.0 - 15.0 * tau + 6.0 * tau ** 2)
+
+
+def _hand_rotation(side: int, fingers: np.ndarray, palm_normal: np.ndarray) -> np.ndarray:
+    """Rotation of a hand whose fingers point along ``fingers`` and palm faces ``palm_normal``."""
+    fingers = fingers / np.linalg.norm(fingers)
+    palm_normal = palm_normal - (palm_normal @ fingers) * fingers
+    palm_normal /= np.linalg.norm(palm_normal)
+    # Canonical right hand: x = -fingers, y = -palm normal, z = thumb = x cross y.
+    x_axis = fingers if side == LEFT else -fingers
+    y_axis = -palm_normal
+    return np.stack([x_axis, y_axis, np.cross(x_axis, y_axis)], axis=1)
+
+
+def _keyframe_target(rng: np.random.Generator, scene: Scene, side: int,
+                     T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Draw one keyframe: wrist position, hand rotation and grasp amount in [0, 1]."""
+    head = T_world_cam[:3, 3]
+    forward = T_world_cam[:3, 2].copy()
+    forward[2] = 0.0
+    forward /= max(np.linalg.norm(forward), 1e-6)
+    side_dir = np.cross([0.0, 0.0, 1.0], forward) * (1.0 if side == LEFT else -1.0)
+    kinds = list(KIND_PROBABILITIES)
+    kind = kinds[rng.choice(len(kinds), p=list(KIND_PROBABILITIES.values()))]
+    down = np.array([0.0, 0.0, -1.0])
+    if kind == 'grasp':
+        offset = forward * rng.uniform(0.25, MAX_REACH_M) + side_dir * rng.uniform(0.0, 0.25)
+        wrist = head + offset
+        wrist[2] = scene.table_top_z + rng.uniform(*GRASP_HEIGHT_M)
+        wrist[:2] = np.clip(wrist[:2], scene.table.center[:2] - scene.table.half_extents[:2],
+                            scene.table.center[:2] + scene.table.half_extents[:2])
+        pitch = np.radians(rng.uniform(10.0, 30.0))
+        grasp = 1.0
+    elif kind == 'hover':
+        wrist = (head + forward * rng.uniform(*HOVER_FORWARD_M)
+                 + side_dir * rng.uniform(*HOVER_SIDE_M) + down * rng.uniform(*HOVER_DOWN_M))
+        pitch = np.radians(rng.uniform(-10.0, 25.0))
+        grasp = rng.uniform(0.0, 0.4)
+    else:
+        wrist = head + side_dir * REST_SIDE_M + down * REST_DOWN_M
+        pitch = np.radians(70.0)
+        grasp = 0.3
+    wrist[2] = max(wrist[2], scene.table_top_z + GRASP_HEIGHT_M[0])
+    reach = wrist - head
+    reach[2] = 0.0
+    heading = reach / max(np.linalg.norm(reach), 1e-6) if np.linalg.norm(reach) > 0.1 else forward
+    fingers = np.cos(pitch) * heading + np.sin(pitch) * down
+    rotation = _hand_rotation(side, fingers, down)
+    jitter = Rotation.from_rotvec(rng.normal(scale=np.radians(ORIENTATION_JITTER_DEG), size=3))
+    return wrist, jitter.as_matrix() @ rotation, grasp
+
+
+def _interpolate(times: np.ndarray, key_times: np.ndarray, key_positions: np.ndarray,
+                 key_rotations: Rotation, key_grasp: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Minimum-jerk interpolation of keyframes at ``times`` (positions, axis-angles, grasp)."""
+    segment = np.clip(np.searchsorted(key_times, times, side='right') - 1, 0, len(key_times) - 2)
+    tau = (times - key_times[segment]) / (key_times[segment + 1] - key_times[segment])
+    weight = minimum_jerk(tau)
+    positions = ((1.0 - weight)[:, None] * key_positions[segment]
+                 + weight[:, None] * key_positions[segment + 1])
+    grasp = (1.0 - weight) * key_grasp[segment] + weight * key_grasp[segment + 1]
+    slerp = Slerp(key_times, key_rotations)
+    eased_times = key_times[segment] + weight * (key_times[segment + 1] - key_times[segment])
+    return positions, slerp(eased_times).as_rotvec(), grasp
+
+
+def _finger_pose(grasp: np.ndarray, side: int, rng: np.random.Generator) -> np.ndarray:
+    """Hand pose (T, 15, 3) curling every finger by ``grasp`` in [0, 1] (MANO joint order)."""
+    levels = np.array(OPEN_FLEX_DEG)[None] + grasp[:, None] * (
+        np.array(GRASP_FLEX_DEG) - np.array(OPEN_FLEX_DEG))[None]
+    thumb = np.array(THUMB_OPEN_DEG)[None] + grasp[:, None] * (
+        np.array(THUMB_GRASP_DEG) - np.array(THUMB_OPEN_DEG))[None]
+    # Long fingers in MANO order: index, middle, pinky, ring (three joints each), then the thumb.
+    finger_scale = rng.uniform(0.85, 1.15, size=4)
+    angles = np.concatenate([levels * s for s in finger_scale] + [thumb], axis=1)
+    axes = np.stack([FINGER_FLEX_AXIS] * 12 + [THUMB_FLEX_AXIS] * 3)
+    pose = np.radians(angles)[:, :, None] * axes[None]
+    return mirror_axis_angle(pose) if side == LEFT else pose
+
+
+def make_hand_track(rng: np.random.Generator, scene: Scene, side: int,
+                    T_world_cams: np.ndarray, fps: float, betas: np.ndarray,
+                    skin_rgb: tuple[int, int, int]) -> HandTrack:
+    """Draw one hand's motion for the camera trajectory ``T_world_cams`` (T, 4, 4).
+
+    Args:
+        rng: random generator (consumed deterministically).
+        scene: the room (its table is the reach target).
+        side: 0 left, 1 right.
+        T_world_cams: camera-to-scene poses per frame (the person's head).
+        fps: frame rate (Hz).
+        betas: (10,) hand shape.
+        skin_rgb: skin colour.
+
+    """
+    num_frames = len(T_world_cams)
+    duration = num_frames / fps
+    gaps = rng.uniform(*KEYFRAME_GAP_S, size=int(duration / KEYFRAME_GAP_S[0]) + 3)
+    key_times = np.concatenate([[0.0], np.cumsum(gaps)]) - rng.uniform(0.0, gaps[0])
+    key_frames = np.clip(np.round(key_times * fps).astype(int), 0, num_frames - 1)
+    targets = [_keyframe_target(rng, scene, side, T_world_cams[k]) for k in key_frames]
+    times = np.arange(num_frames) / fps
+    positions, orient, grasp = _interpolate(
+        times, key_times, np.stack([t[0] for t in targets]),
+        Rotation.from_matrix(np.stack([t[1] for t in targets])), np.array([t[2] for t in targets]))
+    size = float(np.exp(0.05 * betas[0]))
+    radii = np.array([JOINT_RADII_M[0]] + list(JOINT_RADII_M[1:]) * 5) * size
+    return HandTrack(side=side, global_orient=orient,
+                     hand_pose=_finger_pose(grasp, side, rng).reshape(
+                         num_frames, NUM_HAND_POSE_JOINTS, 3),
+                     betas=betas, transl=positions, radii=radii, skin_rgb=skin_rgb)
+
+
+def sample_hand_appearance(rng: np.random.Generator) -> tuple[np.ndarray, tuple[int, int, int]]:
+    """Draw a person's hand shape (10 betas, shared by both hands) and skin colour."""
+    betas = np.clip(rng.normal(scale=BETA_SIGMA, size=NUM_BETAS), -2.0, 2.0)
+    tone = np.array(SKIN_TONES[rng.integers(len(SKIN_TONES))], dtype=float)
+    tone = np.clip(tone + rng.normal(scale=8.0, size=3), 0, 255)
+    return betas, (int(tone[0]), int(tone[1]), int(tone[2]))

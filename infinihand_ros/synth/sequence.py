@@ -1,0 +1,229 @@
+"""Synthetic egocentric sequences with exact ground truth, frame by frame.
+
+A ``SyntheticSequence`` draws a room, a head trajectory, intrinsics and two hands' motions from one
+seed, computes every hand joint once (batched forward kinematics of the built-in hand) and renders
+frames on demand. Ground truth uses the project's conventions: the world frame is the first
+camera's (OpenCV optical), poses are camera-to-world, joints are in OpenPose order, metres.
+"""
+
+from dataclasses import dataclass
+from dataclasses import replace
+from typing import Final, Iterator
+
+from infinihand_ros.core import geometry
+from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.datatypes import ManoParams
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.core.hand_conventions import SIDE_NAMES
+from infinihand_ros.core.mano_frames import transform_mano_params
+from infinihand_ros.mano.builtin import BuiltinHandModel
+from infinihand_ros.synth import camera_motion
+from infinihand_ros.synth import hand_motion
+from infinihand_ros.synth.render import HandGeometry
+from infinihand_ros.synth.render import render_frame
+from infinihand_ros.synth.render import RenderOptions
+from infinihand_ros.synth.scene import make_scene
+import numpy as np
+import torch
+
+#: Stamp of frame 0 (2026-01-01T00:00:00Z), so bags carry plausible absolute times.
+START_TIME_NS: Final = 1_767_225_600_000_000_000
+HAND_CHOICES: Final = {'both': (LEFT, RIGHT), 'left': (LEFT,), 'right': (RIGHT,)}
+
+
+@dataclass(frozen=True)
+class SynthConfig:
+    """Settings of a synthetic sequence (``config/synth.yaml``, section ``synth``).
+
+    Attributes:
+        fps: frame rate (Hz); the paper samples video at 10 FPS.
+        width: image width (px).
+        height: image height (px).
+        hands: which hands appear: 'both', 'left' or 'right'.
+        noise_sigma: image noise standard deviation (uint8 units).
+        motion_blur_px: length of the motion blur (px); 0 disables it.
+        min_visible_px: a hand with fewer visible pixels is marked not visible.
+
+    """
+
+    fps: float = 10.0
+    width: int = 518
+    height: int = 378
+    hands: str = 'both'
+    noise_sigma: float = 2.0
+    motion_blur_px: float = 0.0
+    min_visible_px: int = 40
+
+    def __post_init__(self) -> None:
+        if not 0.5 <= self.fps <= 120.0:
+            raise InputError(f'fps must be within [0.5, 120], got {self.fps}')
+        if not (32 <= self.width <= 4096 and 32 <= self.height <= 4096):
+            raise InputError(
+                f'image size must be within 32..4096 px, got {self.width}x{self.height}')
+        if self.hands not in HAND_CHOICES:
+            raise InputError(f'hands must be one of {sorted(HAND_CHOICES)}, got {self.hands!r}')
+        if self.noise_sigma < 0 or self.motion_blur_px < 0 or self.min_visible_px < 1:
+            raise InputError(
+                'noise_sigma and motion_blur_px must be >= 0 and min_visible_px >= 1, got '
+                f'{self.noise_sigma}, {self.motion_blur_px}, {self.min_visible_px}')
+
+
+@dataclass(frozen=True)
+class HandTruth:
+    """Ground truth of one hand in one frame (present whether or not it is visible).
+
+    Attributes:
+        side: 0 left, 1 right.
+        visible: at least ``min_visible_px`` pixels of the hand are visible.
+        mano_cam: MANO parameters in the camera frame.
+        mano_world: MANO parameters in the world (first camera) frame.
+        joints_cam: (21, 3) joints in the camera frame (m).
+        joints_world: (21, 3) joints in the world frame (m).
+        joints_2d: (21, 2) projected joints (px); depth floored at 1 cm for points behind.
+        mask: (H, W) bool visible pixels of this hand.
+        box_xyxy: (4,) tight box of the mask (px, x1/y1 exclusive); zeros if not visible.
+
+    """
+
+    side: int
+    visible: bool
+    mano_cam: ManoParams
+    mano_world: ManoParams
+    joints_cam: np.ndarray
+    joints_world: np.ndarray
+    joints_2d: np.ndarray
+    mask: np.ndarray
+    box_xyxy: np.ndarray
+
+
+@dataclass(frozen=True)
+class SynthFrame:
+    """One rendered frame and its ground truth.
+
+    Attributes:
+        index: 0-based frame index.
+        timestamp_ns: frame stamp (ns).
+        rgb: (H, W, 3) uint8 image.
+        depth: (H, W) float32 depth along the optical axis (m), +inf where empty.
+        intrinsics: pinhole intrinsics.
+        camera_pose: ``T_world_cam`` with the world frame = the first camera.
+        hands: one ``HandTruth`` per generated side, left first.
+
+    """
+
+    index: int
+    timestamp_ns: int
+    rgb: np.ndarray
+    depth: np.ndarray
+    intrinsics: Intrinsics
+    camera_pose: CameraPose
+    hands: tuple[HandTruth, ...]
+
+
+def mask_box(mask: np.ndarray) -> np.ndarray:
+    """Tight box (x0, y0, x1, y1) of a boolean mask, exclusive ends; zeros for an empty mask."""
+    rows = np.flatnonzero(mask.any(axis=1))
+    cols = np.flatnonzero(mask.any(axis=0))
+    if rows.size == 0:
+        return np.zeros(4)
+    return np.array([cols[0], rows[0], cols[-1] + 1, rows[-1] + 1], dtype=np.float64)
+
+
+class SyntheticSequence:
+    """A deterministic synthetic sequence: everything but the images is computed up front."""
+
+    def __init__(self, config: SynthConfig, seed: int, num_frames: int) -> None:
+        """Draw the scene, motions and ground-truth joints of ``num_frames`` frames."""
+        if num_frames < 1:
+            raise InputError(f'frames must be >= 1, got {num_frames}')
+        self.config = config
+        self.seed = seed
+        self.num_frames = num_frames
+        rng = np.random.default_rng(seed)
+        self.scene = make_scene(rng)
+        self.T_scene_cams = camera_motion.make_camera_trajectory(
+            rng, self.scene, num_frames, config.fps)
+        self.intrinsics = Intrinsics.from_matrix(
+            camera_motion.sample_intrinsics(rng, config.width, config.height),
+            config.width, config.height)
+        self.T_world_scene = geometry.invert_transform(self.T_scene_cams[0])
+        betas, skin = hand_motion.sample_hand_appearance(rng)
+        self.tracks = tuple(
+            hand_motion.make_hand_track(rng, self.scene, side, self.T_scene_cams, config.fps,
+                                        betas, skin)
+            for side in HAND_CHOICES[config.hands])
+        self.joints_scene = tuple(self._forward(track) for track in self.tracks)
+        self._options = RenderOptions(noise_sigma=config.noise_sigma,
+                                      motion_blur_px=config.motion_blur_px)
+
+    @staticmethod
+    def _forward(track: hand_motion.HandTrack) -> np.ndarray:
+        """Joints (T, 21, 3) of a track in the scene frame (built-in hand, float64)."""
+        model = BuiltinHandModel(track.side).double()
+        num = len(track.transl)
+        with torch.no_grad():
+            out = model(torch.as_tensor(track.global_orient), torch.as_tensor(track.hand_pose),
+                        torch.as_tensor(np.tile(track.betas, (num, 1))),
+                        torch.as_tensor(track.transl))
+        return out.joints.numpy()
+
+    def __len__(self) -> int:
+        """Return the number of frames."""
+        return self.num_frames
+
+    def __iter__(self) -> Iterator[SynthFrame]:
+        """Render the frames in order."""
+        return (self.frame(i) for i in range(self.num_frames))
+
+    def camera_pose(self, index: int) -> CameraPose:
+        """``T_world_cam`` of frame ``index`` (world = first camera)."""
+        return CameraPose.from_matrix(self.T_world_scene @ self.T_scene_cams[index])
+
+    def frame(self, index: int) -> SynthFrame:
+        """Render frame ``index`` and assemble its ground truth."""
+        if not 0 <= index < self.num_frames:
+            raise InputError(f'frame index {index} outside 0..{self.num_frames - 1}')
+        T_scene_cam = self.T_scene_cams[index]
+        geometries = [HandGeometry(side=t.side, joints_world=j[index], radii=t.radii,
+                                   skin_rgb=t.skin_rgb)
+                      for t, j in zip(self.tracks, self.joints_scene)]
+        # Noise depends on (seed, index) only, so any frame renders the same in any order.
+        noise_seed = int(np.random.SeedSequence([self.seed, index]).generate_state(1)[0])
+        out = render_frame(self.scene, self.intrinsics.matrix(), T_scene_cam, self.config.width,
+                           self.config.height, geometries,
+                           replace(self._options, noise_seed=noise_seed))
+        pose = self.camera_pose(index)
+        hands = tuple(
+            self._hand_truth(track, joints[index], index, pose, out.hand_masks[track.side])
+            for track, joints in zip(self.tracks, self.joints_scene))
+        stamp = START_TIME_NS + int(round(index * 1e9 / self.config.fps))
+        return SynthFrame(index=index, timestamp_ns=stamp, rgb=out.rgb, depth=out.depth,
+                          intrinsics=self.intrinsics, camera_pose=pose, hands=hands)
+
+    def _hand_truth(self, track: hand_motion.HandTrack, joints_scene: np.ndarray, index: int,
+                    pose: CameraPose, mask: np.ndarray) -> HandTruth:
+        """Ground truth of one hand in frame ``index`` from its scene-frame joints and mask."""
+        mano_scene = ManoParams(track.global_orient[index], track.hand_pose[index], track.betas,
+                                track.transl[index])
+        T_world_scene = self.T_world_scene
+        mano_world = transform_mano_params(mano_scene, T_world_scene[:3, :3], T_world_scene[:3, 3])
+        T_cam_world = pose.inverse_matrix()
+        mano_cam = transform_mano_params(mano_world, T_cam_world[:3, :3], T_cam_world[:3, 3])
+        joints_world = geometry.transform_points(T_world_scene, joints_scene)
+        joints_cam = geometry.transform_points(T_cam_world, joints_world)
+        visible = int(mask.sum()) >= self.config.min_visible_px
+        return HandTruth(side=track.side, visible=visible, mano_cam=mano_cam,
+                         mano_world=mano_world, joints_cam=joints_cam, joints_world=joints_world,
+                         joints_2d=geometry.project_points(joints_cam, self.intrinsics.matrix()),
+                         mask=mask, box_xyxy=mask_box(mask) if visible else np.zeros(4))
+
+    def describe(self) -> dict:
+        """Summary of the drawn sequence (for metadata files)."""
+        fov_h, fov_w = self.intrinsics.fov()
+        return {'seed': self.seed, 'frames': self.num_frames, 'fps': self.config.fps,
+                'width': self.config.width, 'height': self.config.height,
+                'hands': [SIDE_NAMES[t.side] for t in self.tracks],
+                'fov_deg': {'h': float(np.degrees(fov_h)), 'w': float(np.degrees(fov_w))}}

@@ -1,0 +1,289 @@
+"""Renderer: analytic depths, z-buffer occlusion between the scene and the hands, determinism."""
+
+import cv2
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import NUM_JOINTS
+from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.synth import capsules as caps
+from infinihand_ros.synth.camera_motion import sample_intrinsics
+from infinihand_ros.synth.render import HandGeometry
+from infinihand_ros.synth.render import render_frame
+from infinihand_ros.synth.render import RenderOptions
+from infinihand_ros.synth.scene import Lighting
+from infinihand_ros.synth.scene import make_scene
+from infinihand_ros.synth.scene import OrientedBox
+from infinihand_ros.synth.scene import Scene
+from infinihand_ros.synth.scene import TexturedQuad
+import numpy as np
+import pytest
+
+WIDTH, HEIGHT = 160, 120
+K = np.array([[120.0, 0.0, WIDTH / 2], [0.0, 120.0, HEIGHT / 2], [0.0, 0.0, 1.0]])
+CLEAN = RenderOptions(noise_sigma=0.0)
+SKIN = (200, 150, 120)
+
+
+def _lighting() -> Lighting:
+    return Lighting(ambient=0.6, diffuse=0.4, direction_world=np.array([0.0, -0.6, -0.8]),
+                    lamp_world=np.array([0.0, -1.0, 0.0]), lamp=0.0, tint=np.ones(3))
+
+
+def _quad(origin: list, edge_u: list, edge_v: list, seed: int = 0) -> TexturedQuad:
+    rng = np.random.default_rng(seed)
+    texture = rng.integers(0, 256, (32, 32, 3), dtype=np.uint8)
+    return TexturedQuad(np.array(origin, float), np.array(edge_u, float), np.array(edge_v, float),
+                        texture, 'test')
+
+
+def _scene(*quads: TexturedQuad) -> Scene:
+    """Build a scene of the given quads, camera frame = world frame in the tests below."""
+    box = OrientedBox(np.zeros(3), np.ones(3))
+    return Scene(tuple(quads), box, box, (), _lighting())
+
+
+def _wall(depth_m: float, half_m: float = 3.0) -> TexturedQuad:
+    """Build a fronto-parallel quad facing a camera at the origin looking along +z."""
+    return _quad([-half_m, -half_m, depth_m], [2 * half_m, 0, 0], [0, 2 * half_m, 0])
+
+
+def _blob_hand(side: int, centre: list, radius: float = 0.02) -> HandGeometry:
+    """Build a 'hand' whose joints all sit on one point: every capsule is the same sphere."""
+    joints = np.tile(np.array(centre, float), (NUM_JOINTS, 1))
+    return HandGeometry(side, joints, np.full(NUM_JOINTS, radius), SKIN)
+
+
+def _flat_hand(side: int, wrist: list, scale: float = 1.0) -> HandGeometry:
+    """Build a flat open hand in a plane z = const, fingers along -y (up in the image)."""
+    joints = np.zeros((NUM_JOINTS, 3))
+    joints[0] = wrist
+    spread = (-0.03, -0.01, 0.01, 0.03) if side == RIGHT else (0.03, 0.01, -0.01, -0.03)
+    for finger, offset in enumerate(spread):
+        for level in range(4):
+            joints[5 + 4 * finger + level] = np.add(wrist, [offset, -0.08 - 0.025 * level, 0])
+    thumb_dir = -1.0 if side == RIGHT else 1.0
+    for level in range(4):
+        joints[1 + level] = np.add(wrist, [thumb_dir * (0.03 + 0.02 * level), -0.02 - 0.02 * level,
+                                           0])
+    joints = np.asarray(wrist) + (joints - np.asarray(wrist)) * scale
+    return HandGeometry(side, joints, np.full(NUM_JOINTS, 0.01), SKIN)
+
+
+def _pixel_ray(u: float, v: float) -> np.ndarray:
+    return np.linalg.solve(K, np.array([u, v, 1.0]))
+
+
+def test_plane_depth_equals_the_analytic_ray_plane_depth() -> None:
+    normal = np.array([0.3, -0.2, -1.0])
+    normal /= np.linalg.norm(normal)
+    # A big oblique quad through (0, 0, 2) with that normal (edge_v x edge_u = normal).
+    edge_u = np.cross(normal, [0.0, 1.0, 0.0])
+    edge_u *= 8.0 / np.linalg.norm(edge_u)
+    edge_v = np.cross(edge_u, normal)
+    edge_v *= 8.0 / np.linalg.norm(edge_v)
+    origin = np.array([0.0, 0.0, 2.0]) - 0.5 * (edge_u + edge_v)
+    quad = TexturedQuad(origin, edge_u, edge_v, np.full((16, 16, 3), 128, np.uint8))
+    np.testing.assert_allclose(quad.normal, normal, atol=1e-12)
+    out = render_frame(_scene(quad), K, np.eye(4), WIDTH, HEIGHT, [], CLEAN)
+    for u, v in [(0, 0), (80, 60), (159, 119), (20, 100), (140, 7)]:
+        ray = _pixel_ray(u, v)
+        expected = (normal @ np.array([0.0, 0.0, 2.0])) / (normal @ ray)
+        assert out.depth[v, u] == pytest.approx(expected, rel=1e-5)
+
+
+def test_back_face_is_not_drawn_and_empty_pixels_have_infinite_depth() -> None:
+    back = _quad([-3, 3, 2.0], [6, 0, 0], [0, -6, 0])  # same plane as a wall, facing away
+    out = render_frame(_scene(back), K, np.eye(4), WIDTH, HEIGHT, [], CLEAN)
+    assert np.all(np.isinf(out.depth))
+    assert not out.rgb.any()
+
+
+def test_quad_crossing_the_near_plane_is_clipped() -> None:
+    floor = _quad([-2, 0.5, -1.0], [4, 0, 0], [0, 0, 4])  # y = 0.5 plane, from z=-1 to z=3
+    floor = TexturedQuad(floor.origin + floor.edge_v, floor.edge_u, -floor.edge_v, floor.texture)
+    out = render_frame(_scene(floor), K, np.eye(4), WIDTH, HEIGHT, [], CLEAN)
+    finite = np.isfinite(out.depth)
+    assert finite[-1].all() and not finite[0].any()  # floor below the horizon only
+    assert out.depth[finite].min() >= CLEAN.near_m
+    u, v = 30, HEIGHT - 1
+    assert out.depth[v, u] == pytest.approx(0.5 / _pixel_ray(u, v)[1], rel=1e-5)
+
+
+def test_sphere_in_front_renders_at_distance_minus_radius() -> None:
+    distance, radius = 0.6, 0.05
+    hand = _blob_hand(RIGHT, [0.0, 0.0, distance], radius)
+    out = render_frame(_scene(_wall(3.0)), K, np.eye(4), WIDTH, HEIGHT, [hand], CLEAN)
+    cy, cx = HEIGHT // 2, WIDTH // 2
+    assert out.depth[cy, cx] == pytest.approx(distance - radius, abs=1e-5)
+    assert out.hand_masks[RIGHT, cy, cx] and not out.hand_masks[LEFT].any()
+    # Silhouette radius of a sphere: f * r / sqrt(d^2 - r^2).
+    expected_px = K[0, 0] * radius / np.sqrt(distance ** 2 - radius ** 2)
+    assert out.hand_masks[RIGHT, cy].sum() == pytest.approx(2 * expected_px, abs=2.0)
+
+
+def test_capsule_across_the_view_has_analytic_depth() -> None:
+    distance, radius = 0.5, 0.02
+    assert len(caps.build_capsule_set([]).radii) == 0
+    capsules = caps.CapsuleSet(np.array([[-0.1, 0.0, distance]]), np.array([[0.1, 0.0, distance]]),
+                               np.array([radius]), np.array([True]), np.array([True]),
+                               np.array([RIGHT]))
+    rx = ((np.arange(WIDTH) - K[0, 2]) / K[0, 0])[None, :]
+    ry = ((np.arange(HEIGHT) - K[1, 2]) / K[1, 1])[:, None]
+    depth = caps.ray_capsule_depth(rx, ry, capsules, 0)
+    centre = depth[HEIGHT // 2]
+    # Rays of the centre row lie in the plane y = 0 and meet the cylinder y^2 + (z - d)^2 = r^2
+    # at z = d - r wherever x is within the segment.
+    assert centre[WIDTH // 2] == pytest.approx(distance - radius, abs=1e-9)
+    assert centre[WIDTH // 2 + 20] == pytest.approx(distance - radius, abs=1e-9)
+    assert np.isnan(depth[0, 0])  # a ray far above the capsule misses
+
+
+def test_hand_behind_the_table_is_masked_out_and_in_front_is_not() -> None:
+    table = _quad([-0.5, -0.5, 1.0], [1.0, 0, 0], [0, 1.0, 0])
+    scene = _scene(table, _wall(3.0))
+    behind = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT,
+                          [_flat_hand(RIGHT, [0.0, 0.1, 1.3])], CLEAN)
+    assert not behind.hand_masks.any()
+    front = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT,
+                         [_flat_hand(RIGHT, [0.0, 0.1, 0.7])], CLEAN)
+    mask = front.hand_masks[RIGHT]
+    assert mask.sum() > 200
+    assert np.all(front.depth[mask] < 1.0)
+
+
+def test_hand_partly_behind_a_table_edge_is_cut_at_the_edge() -> None:
+    edge = _quad([-0.5, 0.0, 0.8], [1.0, 0, 0], [0, 1.0, 0])  # covers the lower image half
+    scene = _scene(edge, _wall(3.0))
+    out = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [_flat_hand(LEFT, [0.0, 0.05, 1.0])],
+                       CLEAN)
+    rows = np.flatnonzero(out.hand_masks[LEFT].any(axis=1))
+    assert rows.size > 0 and rows.max() <= HEIGHT // 2  # nothing below the edge at v = cy
+
+
+def test_overlapping_hands_give_disjoint_masks_and_the_nearer_wins() -> None:
+    scene = _scene(_wall(3.0))
+    near = _flat_hand(LEFT, [0.0, 0.08, 0.5])
+    far = _flat_hand(RIGHT, [0.03, 0.08, 0.6])
+    solo_near = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [near], CLEAN).hand_masks[LEFT]
+    solo_far = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [far], CLEAN).hand_masks[RIGHT]
+    assert (solo_near & solo_far).sum() > 100  # they do overlap in the image
+    both = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [far, near], CLEAN)
+    assert not (both.hand_masks[LEFT] & both.hand_masks[RIGHT]).any()
+    np.testing.assert_array_equal(both.hand_masks[LEFT], solo_near)
+    np.testing.assert_array_equal(both.hand_masks[RIGHT], solo_far & ~solo_near)
+
+
+def test_hands_outside_or_behind_the_camera_are_fine() -> None:
+    scene = _scene(_wall(3.0))
+    hands = [_flat_hand(LEFT, [0.35, 0.0, 0.5]), _blob_hand(RIGHT, [0.0, 0.0, -0.5])]
+    out = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, hands, CLEAN)
+    assert 0 < out.hand_masks[LEFT].sum() < 0.5 * _solo_area(_flat_hand(LEFT, [0.0, 0.0, 0.5]))
+    assert not out.hand_masks[RIGHT].any()
+
+
+def _solo_area(hand: HandGeometry) -> int:
+    out = render_frame(_scene(_wall(3.0)), K, np.eye(4), WIDTH, HEIGHT, [hand], CLEAN)
+    return int(out.hand_masks[hand.side].sum())
+
+
+@pytest.fixture(scope='module')
+def room() -> Scene:
+    return make_scene(np.random.default_rng(11))
+
+
+def _room_view(room: Scene) -> tuple[np.ndarray, np.ndarray]:
+    """Place a camera above the table edge looking at the table centre; hands go there."""
+    target = room.table_top_center
+    eye = target + np.array([0.0, -0.7, 0.8])
+    forward = (target - eye) / np.linalg.norm(target - eye)
+    right = np.cross(forward, [0.0, 0.0, 1.0])
+    right /= np.linalg.norm(right)
+    pose = np.eye(4)
+    pose[:3, :3] = np.stack([right, np.cross(forward, right), forward], axis=1)
+    pose[:3, 3] = eye
+    return pose, target
+
+
+def _room_hands(pose: np.ndarray, target: np.ndarray) -> list[HandGeometry]:
+    hands = []
+    for side, dx in ((LEFT, -0.08), (RIGHT, 0.08)):
+        local = _flat_hand(side, [0.0, 0.0, 0.0]).joints_world
+        world = local @ pose[:3, :3].T + target + np.array([dx, -0.2, 0.12])
+        hands.append(HandGeometry(side, world, np.full(NUM_JOINTS, 0.01), SKIN))
+    return hands
+
+
+def test_room_render_masks_are_on_finite_depth_and_in_front_of_the_scene(room: Scene) -> None:
+    pose, target = _room_view(room)
+    k = sample_intrinsics(np.random.default_rng(0), WIDTH, HEIGHT)
+    empty = render_frame(room, k, pose, WIDTH, HEIGHT, [], CLEAN)
+    out = render_frame(room, k, pose, WIDTH, HEIGHT, _room_hands(pose, target), CLEAN)
+    assert np.isfinite(empty.depth).all()  # closed room: every pixel sees a surface
+    assert out.rgb.dtype == np.uint8 and out.rgb.shape == (HEIGHT, WIDTH, 3)
+    assert out.depth.dtype == np.float32 and out.hand_masks.shape == (2, HEIGHT, WIDTH)
+    for side in (LEFT, RIGHT):
+        mask = out.hand_masks[side]
+        assert mask.sum() > 50
+        assert np.isfinite(out.depth[mask]).all()
+        assert np.all(out.depth[mask] < empty.depth[mask])
+    unchanged = ~out.hand_masks.any(axis=0)
+    np.testing.assert_array_equal(out.depth[unchanged], empty.depth[unchanged])
+
+
+def test_render_is_deterministic_and_the_noise_follows_its_seed(room: Scene) -> None:
+    pose, target = _room_view(room)
+    hands = _room_hands(pose, target)
+    first = render_frame(room, K, pose, WIDTH, HEIGHT, hands, RenderOptions(noise_seed=3))
+    again = render_frame(room, K, pose, WIDTH, HEIGHT, hands, RenderOptions(noise_seed=3))
+    other = render_frame(room, K, pose, WIDTH, HEIGHT, hands, RenderOptions(noise_seed=4))
+    np.testing.assert_array_equal(first.rgb, again.rgb)
+    np.testing.assert_array_equal(first.depth, again.depth)
+    assert np.any(first.rgb != other.rgb)
+    np.testing.assert_array_equal(first.hand_masks, other.hand_masks)
+    other_scene = make_scene(np.random.default_rng(12))
+    assert np.any(render_frame(other_scene, K, pose, WIDTH, HEIGHT, hands, CLEAN).rgb
+                  != render_frame(room, K, pose, WIDTH, HEIGHT, hands, CLEAN).rgb)
+
+
+def test_noise_has_the_requested_sigma_and_blur_smooths(room: Scene) -> None:
+    pose, _ = _room_view(room)
+    clean = render_frame(room, K, pose, WIDTH, HEIGHT, [], CLEAN).rgb.astype(float)
+    noisy = render_frame(room, K, pose, WIDTH, HEIGHT, [], RenderOptions(noise_sigma=4.0)).rgb
+    diff = noisy.astype(float) - clean
+    inside = (clean > 20) & (clean < 235)  # away from clipping
+    assert diff[inside].std() == pytest.approx(4.0, rel=0.15)
+    assert abs(diff[inside].mean()) < 0.2
+    blurred = render_frame(room, K, pose, WIDTH, HEIGHT, [],
+                           RenderOptions(noise_sigma=0.0, motion_blur_px=9.0)).rgb.astype(float)
+    laplacian = [np.abs(cv2.Laplacian(img[..., 1], cv2.CV_64F)).mean() for img in (clean, blurred)]
+    assert laplacian[1] < 0.7 * laplacian[0]
+    assert blurred.mean() == pytest.approx(clean.mean(), rel=0.02)
+
+
+def test_bad_inputs_raise_clear_errors(room: Scene) -> None:
+    hand = _blob_hand(LEFT, [0, 0, 1])
+    with pytest.raises(InputError, match='K: expected shape'):
+        render_frame(room, np.eye(2), np.eye(4), WIDTH, HEIGHT, [], CLEAN)
+    with pytest.raises(InputError, match='at most one hand per side'):
+        render_frame(room, K, np.eye(4), WIDTH, HEIGHT, [hand, hand], CLEAN)
+    with pytest.raises(InputError, match='image size must be positive'):
+        render_frame(room, K, np.eye(4), 0, HEIGHT, [], CLEAN)
+    with pytest.raises(InputError, match='joints_world: expected shape'):
+        HandGeometry(LEFT, np.zeros((20, 3)), np.ones(NUM_JOINTS), SKIN)
+    with pytest.raises(InputError, match='radii must be positive'):
+        HandGeometry(LEFT, np.zeros((NUM_JOINTS, 3)), np.zeros(NUM_JOINTS), SKIN)
+    with pytest.raises(InputError, match='side must be 0'):
+        HandGeometry(2, np.zeros((NUM_JOINTS, 3)), np.ones(NUM_JOINTS), SKIN)
+    with pytest.raises(InputError, match='noise_sigma=-1'):
+        RenderOptions(noise_sigma=-1.0)
+
+
+def test_hand_capsules_cover_bones_palm_and_thumb_web() -> None:
+    hand = _flat_hand(RIGHT, [0.0, 0.0, 0.5])
+    starts, ends, radii = caps.hand_capsules(hand.joints_world, hand.radii)
+    assert len(starts) == 20 + 3 * 3 + 1
+    capsule_set = caps.build_capsule_set([(hand.joints_world, hand.radii, RIGHT)])
+    # Each distinct sphere is intersected once: fewer caps than 2 per capsule.
+    assert capsule_set.start_caps.sum() + capsule_set.end_caps.sum() < 2 * len(starts)
+    assert capsule_set.end_caps[:20].all()
+    np.testing.assert_array_equal(capsule_set.sides, RIGHT)
