@@ -39,12 +39,20 @@ def atomic_directory(final_path: str | Path, overwrite: bool = False) -> Iterato
         shutil.rmtree(staging, ignore_errors=True)
 
 
+def _current_umask() -> int:
+    """Return the process umask (read by setting and restoring it)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file and an atomic rename."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     handle, temp_name = tempfile.mkstemp(prefix=f'.{path.name}.', dir=path.parent)
     try:
+        os.fchmod(handle, 0o666 & ~_current_umask())  # mkstemp creates 0600; honour the umask
         with os.fdopen(handle, 'wb') as stream:
             stream.write(data)
         os.replace(temp_name, path)

@@ -99,14 +99,24 @@ def load_config(path: str | Path, section: str, cls: type[ConfigT]) -> ConfigT:
     return config_from_dict(cls, document[section], f'{path}:{section}')
 
 
-def config_dir() -> Path:
-    """Return the package's ``config/`` directory (installed share dir, else the source tree)."""
-    source_dir = Path(__file__).resolve().parents[2] / 'config'
+def package_share_dir(name: str) -> Path:
+    """Return the package's ``name`` directory (source tree first, else the installed share dir).
+
+    Raises:
+        ConfigError: when neither exists.
+
+    """
+    source_dir = Path(__file__).resolve().parents[2] / name
     if source_dir.is_dir():
         return source_dir
     try:
         from ament_index_python.packages import get_package_share_directory
     except ImportError as exc:
-        raise ConfigError('cannot find config/: not in a source tree and ament_index_python '
+        raise ConfigError(f'cannot find {name}/: not in a source tree and ament_index_python '
                           'is unavailable; source scripts/env.sh') from exc
-    return Path(get_package_share_directory('infinihand_ros')) / 'config'
+    return Path(get_package_share_directory('infinihand_ros')) / name
+
+
+def config_dir() -> Path:
+    """Return the package's ``config/`` directory."""
+    return package_share_dir('config')
