@@ -1,4 +1,7 @@
-"""sensor_msgs Image and CameraInfo <-> numpy images and ``Intrinsics``.
+"""sensor_msgs Image, CompressedImage and CameraInfo <-> numpy images and ``Intrinsics``.
+
+Compressed images follow image_transport's ``compressed`` plugin: ``format`` reads
+``'<original encoding>; <jpeg|png> compressed <bgr8|rgb8>'``.
 
 Builders take a rosbags typestore; the readers only use message attributes, so they accept rosbags
 messages and rclpy messages alike.
@@ -6,8 +9,10 @@ messages and rclpy messages alike.
 
 from typing import Any, Final
 
+import cv2
 from infinihand_ros.bag.messages import stamp_from_ns
 from infinihand_ros.bag.typestore import CAMERA_INFO_MSG
+from infinihand_ros.bag.typestore import COMPRESSED_IMAGE_MSG
 from infinihand_ros.bag.typestore import HEADER_MSG
 from infinihand_ros.bag.typestore import IMAGE_MSG
 from infinihand_ros.core.datatypes import Intrinsics
@@ -18,6 +23,8 @@ from rosbags.typesys.store import Typestore
 #: Channels of each supported encoding; images inside the core are always RGB uint8.
 ENCODING_CHANNELS: Final = {'rgb8': 3, 'bgr8': 3, 'mono8': 1}
 DISTORTION_MODEL: Final = 'plumb_bob'
+#: Codecs of CompressedImage messages, with their OpenCV file extensions.
+CODEC_EXTENSIONS: Final = {'jpeg': '.jpg', 'png': '.png'}
 
 
 def image_to_msg(typestore: Typestore, rgb: np.ndarray, timestamp_ns: int, frame_id: str) -> Any:
@@ -58,6 +65,44 @@ def msg_to_image(msg: Any) -> np.ndarray:
     if encoding == 'mono8':
         return np.repeat(pixels, 3, axis=2)
     return pixels
+
+
+def image_to_compressed_msg(typestore: Typestore, rgb: np.ndarray, timestamp_ns: int,
+                            frame_id: str, codec: str, jpeg_quality: int = 90) -> Any:
+    """Build a ``sensor_msgs/msg/CompressedImage`` (jpeg or png of bgr8, as image_transport)."""
+    if rgb.ndim != 3 or rgb.shape[2] != 3 or rgb.dtype != np.uint8:
+        raise InputError(f'image: expected (H, W, 3) uint8 RGB, got {rgb.shape} {rgb.dtype}')
+    if codec not in CODEC_EXTENSIONS:
+        raise InputError(f'image codec must be one of {sorted(CODEC_EXTENSIONS)}, got {codec!r}')
+    params = [cv2.IMWRITE_JPEG_QUALITY, int(jpeg_quality)] if codec == 'jpeg' else []
+    ok, encoded = cv2.imencode(CODEC_EXTENSIONS[codec], rgb[:, :, ::-1], params)
+    if not ok:
+        raise InputError(f'image: OpenCV could not encode a {rgb.shape} image as {codec}')
+    header = typestore.types[HEADER_MSG](stamp=stamp_from_ns(typestore, timestamp_ns),
+                                         frame_id=frame_id)
+    return typestore.types[COMPRESSED_IMAGE_MSG](
+        header=header, format=f'rgb8; {codec} compressed bgr8', data=encoded.reshape(-1))
+
+
+def compressed_msg_to_image(msg: Any) -> np.ndarray:
+    """Decode a CompressedImage message (jpeg or png) into (H, W, 3) uint8 RGB.
+
+    Raises:
+        InputError: for empty or undecodable data.
+
+    """
+    data = np.frombuffer(memoryview(msg.data), dtype=np.uint8)
+    fmt = str(msg.format)
+    if data.size == 0:
+        raise InputError(f'compressed image ({fmt!r}) is empty')
+    decoded = cv2.imdecode(data, cv2.IMREAD_COLOR)
+    if decoded is None:
+        raise InputError(f'compressed image ({fmt!r}, {data.size} bytes) could not be decoded; '
+                         "publish jpeg or png through image_transport's compressed plugin")
+    # OpenCV decodes to BGR; a stream stored as rgb8 was encoded with swapped channels.
+    if fmt.endswith('compressed rgb8'):
+        return decoded
+    return np.ascontiguousarray(decoded[:, :, ::-1])
 
 
 def camera_info_to_msg(typestore: Typestore, intrinsics: Intrinsics, timestamp_ns: int,

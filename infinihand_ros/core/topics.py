@@ -4,6 +4,7 @@ from typing import Final
 
 #: Camera input of recorded and synthetic bags.
 IMAGE_TOPIC: Final = '/camera/image_raw'
+COMPRESSED_IMAGE_TOPIC: Final = '/camera/image_raw/compressed'
 CAMERA_INFO_TOPIC: Final = '/camera/camera_info'
 #: Ground truth written by the synthetic generator.
 GT_CAMERA_POSE_TOPIC: Final = '/ground_truth/camera_pose'

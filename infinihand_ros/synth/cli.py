@@ -1,7 +1,8 @@
 """Command line: generate a synthetic sequence as a bag, training samples and preview PNGs.
 
 ``python -m infinihand_ros.synth --out DIR --seed S --frames N [--fps F --width W --height H
---hands both|left|right --format mcap|sqlite3]`` writes into DIR::
+--hands both|left|right --format mcap|sqlite3 --compress --image-codec raw|jpeg|png]`` writes into
+DIR::
 
     bag/                    rosbag2 bag (MCAP or sqlite3) with images and ground truth
     samples/                training samples (data/sample_format.py)
@@ -25,7 +26,9 @@ from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import load_config
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.synth import preview
+from infinihand_ros.synth.bag_sink import BagOptions
 from infinihand_ros.synth.bag_sink import BagSink
+from infinihand_ros.synth.bag_sink import IMAGE_CODECS
 from infinihand_ros.synth.bag_sink import STORAGE_PLUGINS
 from infinihand_ros.synth.sample_sink import SampleSink
 from infinihand_ros.synth.sequence import HAND_CHOICES
@@ -62,16 +65,19 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--width', type=int, help='image width in px (default 518)')
     parser.add_argument('--height', type=int, help='image height in px (default 378)')
     parser.add_argument('--hands', choices=sorted(HAND_CHOICES), help='hands shown (default both)')
-    parser.add_argument('--format', dest='storage', default='mcap',
-                        choices=sorted(STORAGE_PLUGINS),
+    parser.add_argument('--format', dest='storage', choices=sorted(STORAGE_PLUGINS),
                         help='bag storage (default mcap)')
-    parser.add_argument('--compress', action='store_true', help='zstd-compress the bag')
+    parser.add_argument('--compress', action='store_true', default=None,
+                        help='zstd-compress the bag')
+    parser.add_argument('--image-codec', choices=IMAGE_CODECS,
+                        help='raw: sensor_msgs/Image rgb8 (default); jpeg or png: '
+                             'sensor_msgs/CompressedImage on /camera/image_raw/compressed')
     parser.add_argument('--config', type=Path, help='settings file (default: config/synth.yaml)')
     return parser
 
 
-def validate_args(args: argparse.Namespace) -> SynthConfig:
-    """Check the arguments and return the resolved settings.
+def validate_args(args: argparse.Namespace) -> tuple[SynthConfig, BagOptions]:
+    """Check the arguments and return the resolved sequence and bag settings.
 
     Raises:
         InfiniHandError: naming the bad argument and the accepted values.
@@ -84,10 +90,15 @@ def validate_args(args: argparse.Namespace) -> SynthConfig:
     if args.out.exists() and (not args.out.is_dir() or any(args.out.iterdir())):
         raise InfiniHandError(f'--out {args.out} exists and is not an empty directory; '
                               'choose a new path')
-    config = load_config(args.config or config_dir() / 'synth.yaml', 'synth', SynthConfig)
-    overrides = {key: getattr(args, key) for key in ('fps', 'width', 'height', 'hands')
-                 if getattr(args, key) is not None}
-    return replace(config, **overrides)
+    path = args.config or config_dir() / 'synth.yaml'
+    config = load_config(path, 'synth', SynthConfig)
+    bag_options = load_config(path, 'bag', BagOptions)
+
+    def overrides(keys: tuple[str, ...]) -> dict:
+        return {key: getattr(args, key) for key in keys if getattr(args, key) is not None}
+
+    return (replace(config, **overrides(('fps', 'width', 'height', 'hands'))),
+            replace(bag_options, **overrides(('storage', 'compress', 'image_codec'))))
 
 
 def _preview_tile(frame: SynthFrame) -> np.ndarray:
@@ -99,14 +110,15 @@ def _preview_tile(frame: SynthFrame) -> np.ndarray:
     return image
 
 
-def generate(config: SynthConfig, seed: int, frames: int, out: Path, storage: str = 'mcap',
-             compress: bool = False, progress: bool = True) -> dict:
+def generate(config: SynthConfig, seed: int, frames: int, out: Path,
+             bag_options: BagOptions | None = None, progress: bool = True) -> dict:
     """Generate one sequence into ``out``; return a summary with the measured speed."""
     start = time.perf_counter()
     sequence = SyntheticSequence(config, seed, frames)
     preview_indices = set(np.linspace(0, frames - 1, min(PREVIEW_TILES, frames)).astype(int))
     tiles, labels = [], []
-    with BagSink(out / BAG_DIR, storage, compress) as bag, \
+    bag_options = bag_options or BagOptions()
+    with BagSink(out / BAG_DIR, bag_options) as bag, \
             SampleSink(out / SAMPLES_DIR, sequence.describe()) as samples:
         for frame in tqdm(sequence, total=frames, desc='synth', unit='frame',
                           disable=not progress):
@@ -122,8 +134,8 @@ def generate(config: SynthConfig, seed: int, frames: int, out: Path, storage: st
         if not ok:
             raise InfiniHandError(f'could not encode {name}')
         atomic_write_bytes(out / name, png.tobytes())
-    resolved = {'synth': asdict(config), 'seed': seed, 'frames': frames, 'format': storage,
-                'compress': compress, 'sequence': sequence.describe()}
+    resolved = {'synth': asdict(config), 'bag': asdict(bag_options), 'seed': seed,
+                'frames': frames, 'sequence': sequence.describe()}
     atomic_write_bytes(out / RESOLVED_CONFIG, yaml.safe_dump(resolved, sort_keys=False).encode())
     return {'frames': frames, 'seconds': elapsed, 'fps': frames / elapsed, 'out': str(out)}
 
@@ -133,8 +145,8 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format='%(levelname)s %(name)s: %(message)s')
     args = build_parser().parse_args(argv)
     try:
-        config = validate_args(args)
-        summary = generate(config, args.seed, args.frames, args.out, args.storage, args.compress)
+        config, bag_options = validate_args(args)
+        summary = generate(config, args.seed, args.frames, args.out, bag_options)
     except InfiniHandError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
