@@ -46,7 +46,7 @@ class CameraMotionConfig:
     """Ranges of the head motion (metres, degrees, hertz).
 
     Attributes:
-        eye_height_range_m: eye (camera) height above the floor.
+        eye_height_range_m: eye (camera) height above the floor (seated to standing).
         standoff_range_m: horizontal distance from the table edge to the eyes at rest.
         path_length_range_m: length of the camera path over the sequence (before limits).
         max_speed_mps: walking speed limit (shrinks the path of short sequences).
@@ -63,15 +63,15 @@ class CameraMotionConfig:
 
     """
 
-    eye_height_range_m: tuple[float, float] = (1.5, 1.7)
-    standoff_range_m: tuple[float, float] = (0.2, 0.45)
+    eye_height_range_m: tuple[float, float] = (1.1, 1.5)
+    standoff_range_m: tuple[float, float] = (0.15, 0.35)
     path_length_range_m: tuple[float, float] = (0.4, 2.5)
     max_speed_mps: float = 0.6
     max_lateral_m: float = 0.9
-    max_depth_m: float = 0.12
+    max_depth_m: float = 0.1
     bob_m: float = 0.02
     frequency_range_hz: tuple[float, float] = (0.03, 0.15)
-    gaze_depth_range_m: tuple[float, float] = (0.15, 0.35)
+    gaze_depth_range_m: tuple[float, float] = (0.05, 0.25)
     gaze_lateral_m: float = 0.35
     gaze_depth_m: float = 0.15
     head_turn_deg: float = 10.0

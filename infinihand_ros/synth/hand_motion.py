@@ -23,14 +23,14 @@ from scipy.spatial.transform import Slerp
 KEYFRAME_GAP_S: Final = (1.0, 2.2)
 #: Probabilities of the keyframe kinds (reach to the table, hover in view, rest by the body).
 KIND_PROBABILITIES: Final = {'grasp': 0.55, 'hover': 0.33, 'rest': 0.12}
-#: Reach targets on the table lie at most this far (horizontally) from the head (m).
-MAX_REACH_M: Final = 0.65
+#: Horizontal distance from the head to a reach target on the table (m).
+REACH_M: Final = (0.15, 0.5)
 #: Wrist height above the table top when grasping (m).
 GRASP_HEIGHT_M: Final = (0.08, 0.14)
 #: Hover point relative to the head: forward, sideways (per side), downwards (m).
-HOVER_FORWARD_M: Final = (0.30, 0.50)
+HOVER_FORWARD_M: Final = (0.22, 0.40)
 HOVER_SIDE_M: Final = (0.05, 0.22)
-HOVER_DOWN_M: Final = (0.20, 0.42)
+HOVER_DOWN_M: Final = (0.15, 0.35)
 #: Rest point relative to the head: sideways and downwards (m).
 REST_SIDE_M: Final = 0.25
 REST_DOWN_M: Final = 0.75
@@ -108,7 +108,7 @@ def _keyframe_target(rng: np.random.Generator, scene: Scene, side: int,
     kind = kinds[rng.choice(len(kinds), p=list(KIND_PROBABILITIES.values()))]
     down = np.array([0.0, 0.0, -1.0])
     if kind == 'grasp':
-        offset = forward * rng.uniform(0.25, MAX_REACH_M) + side_dir * rng.uniform(0.0, 0.25)
+        offset = forward * rng.uniform(*REACH_M) + side_dir * rng.uniform(0.0, 0.25)
         wrist = head + offset
         wrist[2] = scene.table_top_z + rng.uniform(*GRASP_HEIGHT_M)
         wrist[:2] = np.clip(wrist[:2], scene.table.center[:2] - scene.table.half_extents[:2],
