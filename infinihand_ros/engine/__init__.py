@@ -1,0 +1,1 @@
+"""The streaming engine: frames in, per-frame camera and world-space hand results out."""
