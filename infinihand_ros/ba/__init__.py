@@ -1,0 +1,1 @@
+"""Sparse bundle adjustment: binary keyframe pool, correspondences, solver, pose corrections."""

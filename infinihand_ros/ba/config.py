@@ -1,0 +1,128 @@
+"""Configuration of the bundle-adjustment components (``config/ba.yaml``)."""
+
+from dataclasses import dataclass
+from dataclasses import field
+from pathlib import Path
+
+from infinihand_ros.core.config import config_dir
+from infinihand_ros.core.config import load_config
+
+
+@dataclass(frozen=True)
+class PoolConfig:
+    """Binary keyframe pool (paper appendix C; the paper gives no values for N and K).
+
+    Attributes:
+        trigger: N, BA runs when the pool holds more than N entries.
+        stride: K, every K-th pool entry from the oldest is selected.
+
+    """
+
+    trigger: int = 32
+    stride: int = 3
+
+    def __post_init__(self) -> None:
+        if self.trigger < 1 or self.stride < 2:
+            raise ValueError(f'pool needs trigger >= 1 and stride >= 2, got trigger='
+                             f'{self.trigger}, stride={self.stride}')
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    """Levenberg-Marquardt BA over keyframe poses and per-track inverse depths.
+
+    Attributes:
+        irls_iterations: LM iterations with Huber weights before the outlier gate.
+        max_iterations: LM iterations of plain least squares after the gate.
+        huber_px: Huber threshold on the reprojection error norm (px).
+        gate_px: observations with a larger reprojection error after IRLS are dropped (px).
+        depth_prior_rel_sigma: depth prior sigma as a fraction of the depth (at confidence 1).
+        rel_pose_sigma_m: sigma of the relative-pose prior's translation (m); <= 0 disables it.
+        rel_pose_sigma_rad: sigma of the relative-pose prior's rotation (rad).
+        initial_damping: LM damping (Marquardt, relative to the diagonal) at the start.
+        min_relative_decrease: stop when the cost decreases by less than this fraction.
+        min_inverse_depth: inverse depths are kept above this (1/m).
+
+    """
+
+    irls_iterations: int = 4
+    max_iterations: int = 6
+    huber_px: float = 1.5
+    gate_px: float = 3.0
+    depth_prior_rel_sigma: float = 0.05
+    rel_pose_sigma_m: float = 0.05
+    rel_pose_sigma_rad: float = 0.02
+    initial_damping: float = 1e-4
+    min_relative_decrease: float = 1e-6
+    min_inverse_depth: float = 1e-3
+
+    def __post_init__(self) -> None:
+        if self.irls_iterations < 0 or self.max_iterations < 1:
+            raise ValueError(f'need irls_iterations >= 0 and max_iterations >= 1, got '
+                             f'{self.irls_iterations}, {self.max_iterations}')
+        positive = {'huber_px': self.huber_px, 'gate_px': self.gate_px,
+                    'depth_prior_rel_sigma': self.depth_prior_rel_sigma,
+                    'rel_pose_sigma_rad': self.rel_pose_sigma_rad,
+                    'initial_damping': self.initial_damping,
+                    'min_inverse_depth': self.min_inverse_depth}
+        bad = {name: value for name, value in positive.items() if value <= 0}
+        if bad:
+            raise ValueError(f'these solver settings must be positive: {bad}')
+
+
+@dataclass(frozen=True)
+class TrackingConfig:
+    """Correspondences between keyframes: KLT tracks, ORB re-links, RANSAC.
+
+    Attributes:
+        max_corners: corners detected per keyframe for KLT.
+        corner_quality: goodFeaturesToTrack quality level.
+        min_corner_distance_px: minimum distance between detected corners (px).
+        klt_window_px: KLT window side (px).
+        klt_levels: KLT pyramid levels above the base image.
+        fb_threshold_px: forward-backward KLT error above which a track is cut (px).
+        hand_margin_px: hand masks are dilated by this much before excluding pixels (px).
+        ransac_threshold_px: fundamental-matrix RANSAC inlier threshold (px).
+        orb_features: ORB keypoints per keyframe.
+        orb_max_hamming: largest Hamming distance of an accepted ORB match.
+        orb_max_gap: ORB matches each keyframe to the selected keyframes 2..gap places older.
+        min_depth_m: depths outside [min_depth_m, max_depth_m] give no track (m).
+        max_depth_m: see min_depth_m.
+
+    """
+
+    max_corners: int = 200
+    corner_quality: float = 0.01
+    min_corner_distance_px: float = 10.0
+    klt_window_px: int = 15
+    klt_levels: int = 3
+    fb_threshold_px: float = 1.0
+    hand_margin_px: int = 10
+    ransac_threshold_px: float = 1.0
+    orb_features: int = 400
+    orb_max_hamming: int = 48
+    orb_max_gap: int = 2
+    min_depth_m: float = 0.05
+    max_depth_m: float = 30.0
+
+    def __post_init__(self) -> None:
+        if self.max_corners < 8 or self.orb_features < 8 or self.klt_levels < 0:
+            raise ValueError(f'need max_corners >= 8, orb_features >= 8, klt_levels >= 0, got '
+                             f'{self.max_corners}, {self.orb_features}, {self.klt_levels}')
+        if not 0.0 < self.min_depth_m < self.max_depth_m:
+            raise ValueError(f'need 0 < min_depth_m < max_depth_m, got {self.min_depth_m}, '
+                             f'{self.max_depth_m}')
+
+
+@dataclass(frozen=True)
+class BAConfig:
+    """All bundle-adjustment settings (``config/ba.yaml``, section ``ba``)."""
+
+    pool: PoolConfig = field(default_factory=PoolConfig)
+    solver: SolverConfig = field(default_factory=SolverConfig)
+    tracking: TrackingConfig = field(default_factory=TrackingConfig)
+
+
+def load_ba_config(path: str | Path | None = None) -> BAConfig:
+    """Load the ``ba`` section of ``path`` (default: the package's ``config/ba.yaml``)."""
+    return load_config(config_dir() / 'ba.yaml' if path is None else path, 'ba', BAConfig)

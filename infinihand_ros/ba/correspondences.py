@@ -1,0 +1,200 @@
+"""Correspondences between selected keyframes, turned into a ``BAProblem``.
+
+KLT (goodFeaturesToTrack + pyramidal Lucas-Kanade with a forward-backward check) links
+consecutive keyframes into tracks; ORB matching re-links keyframes 2..``orb_max_gap`` places
+apart. Every pairing passes fundamental-matrix RANSAC. Hand pixels (dilated masks) and pixels
+without a valid model depth are excluded. A track's host is its oldest keyframe; its depth prior
+and initial inverse depth come from the host's depth map.
+"""
+
+from dataclasses import dataclass
+
+import cv2
+from infinihand_ros.ba.config import SolverConfig
+from infinihand_ros.ba.config import TrackingConfig
+from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.ba.problem import BAProblem
+import numpy as np
+
+#: LK termination: iterations and epsilon (px).
+LK_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
+#: Fewer point pairs than this skip RANSAC's model fit (all pairs are dropped).
+MIN_RANSAC_PAIRS = 8
+
+
+@dataclass(frozen=True)
+class _Prepared:
+    """Per-keyframe images for matching."""
+
+    gray: np.ndarray  # (H, W) uint8
+    valid: np.ndarray  # (H, W) uint8, 255 where tracking is allowed
+
+
+@dataclass
+class _Tracks:
+    """Growing list of (track, keyframe, pixel) observations; track ids are dense from 0."""
+
+    track: list
+    frame: list
+    xy: list
+    count: int = 0
+
+    def add(self, frame: int, xy: np.ndarray, track: np.ndarray | None = None) -> np.ndarray:
+        """Add observations in ``frame``; new track ids when ``track`` is None; return ids."""
+        if track is None:
+            track = np.arange(self.count, self.count + len(xy))
+            self.count += len(xy)
+        self.track.append(track)
+        self.frame.append(np.full(len(xy), frame))
+        self.xy.append(np.asarray(xy, dtype=np.float64).reshape(-1, 2))
+        return track
+
+
+def prepare(keyframe: KeyframeInput, config: TrackingConfig) -> _Prepared:
+    """Return the grey image and the mask of trackable pixels (no hand, valid depth)."""
+    hands = keyframe.hand_mask.astype(np.uint8)
+    if config.hand_margin_px > 0:
+        size = 2 * config.hand_margin_px + 1
+        hands = cv2.dilate(hands, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size)))
+    depth = keyframe.depth
+    good_depth = np.isfinite(depth) & (depth >= config.min_depth_m) & (depth <= config.max_depth_m)
+    valid = ((hands == 0) & good_depth).astype(np.uint8) * 255
+    return _Prepared(cv2.cvtColor(keyframe.image, cv2.COLOR_RGB2GRAY), valid)
+
+
+def _inside(valid: np.ndarray, xy: np.ndarray) -> np.ndarray:
+    """Return (N,) bool: the rounded pixel lies in the image and on a trackable pixel."""
+    col, row = np.round(xy[:, 0]).astype(int), np.round(xy[:, 1]).astype(int)
+    height, width = valid.shape
+    inside = (col >= 0) & (col < width) & (row >= 0) & (row < height)
+    out = np.zeros(len(xy), dtype=bool)
+    out[inside] = valid[row[inside], col[inside]] > 0
+    return out
+
+
+def ransac_inliers(xy_a: np.ndarray, xy_b: np.ndarray, threshold_px: float) -> np.ndarray:
+    """Return (N,) bool inliers of a fundamental-matrix RANSAC between pixel pairs (N, 2)."""
+    if len(xy_a) < MIN_RANSAC_PAIRS:
+        return np.zeros(len(xy_a), dtype=bool)
+    _, mask = cv2.findFundamentalMat(xy_a.astype(np.float32), xy_b.astype(np.float32),
+                                     cv2.FM_RANSAC, threshold_px, 0.999)
+    return np.zeros(len(xy_a), dtype=bool) if mask is None else mask.ravel().astype(bool)
+
+
+def klt_track(gray_a: np.ndarray, gray_b: np.ndarray, xy_a: np.ndarray,
+              config: TrackingConfig) -> tuple[np.ndarray, np.ndarray]:
+    """Track pixels (N, 2) from image a to b; return (xy_b (N, 2), ok (N,) bool).
+
+    A point is kept when LK converges both ways and returns within ``fb_threshold_px``.
+    """
+    if len(xy_a) == 0:
+        return np.zeros((0, 2)), np.zeros(0, dtype=bool)
+    window = (config.klt_window_px, config.klt_window_px)
+    start = xy_a.astype(np.float32).reshape(-1, 1, 2)
+    forward, ok_f, _ = cv2.calcOpticalFlowPyrLK(gray_a, gray_b, start, None, winSize=window,
+                                                maxLevel=config.klt_levels, criteria=LK_CRITERIA)
+    back, ok_b, _ = cv2.calcOpticalFlowPyrLK(gray_b, gray_a, forward, None, winSize=window,
+                                             maxLevel=config.klt_levels, criteria=LK_CRITERIA)
+    fb_error = np.linalg.norm((back - start).reshape(-1, 2), axis=-1)
+    ok = (ok_f.ravel() > 0) & (ok_b.ravel() > 0) & (fb_error < config.fb_threshold_px)
+    return forward.reshape(-1, 2).astype(np.float64), ok
+
+
+def _detect(prepared: _Prepared, existing: np.ndarray, config: TrackingConfig) -> np.ndarray:
+    """Return new corners (N, 2) on trackable pixels, away from ``existing`` (E, 2) points."""
+    taken = np.zeros_like(prepared.valid)
+    height, width = taken.shape
+    col = np.clip(np.round(existing[:, 0]).astype(int), 0, width - 1)
+    row = np.clip(np.round(existing[:, 1]).astype(int), 0, height - 1)
+    taken[row, col] = 1
+    size = 2 * int(config.min_corner_distance_px) + 1
+    taken = cv2.dilate(taken, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size)))
+    mask = np.where(taken > 0, 0, prepared.valid).astype(np.uint8)
+    wanted = config.max_corners - len(existing)
+    if wanted <= 0:
+        return np.zeros((0, 2))
+    corners = cv2.goodFeaturesToTrack(prepared.gray, wanted, config.corner_quality,
+                                      config.min_corner_distance_px, mask=mask)
+    return np.zeros((0, 2)) if corners is None else corners.reshape(-1, 2).astype(np.float64)
+
+
+def _klt_tracks(prepared: list[_Prepared], config: TrackingConfig, tracks: _Tracks) -> None:
+    """Chain KLT tracks through consecutive keyframes (new corners topped up in each)."""
+    ids = tracks.add(0, _detect(prepared[0], np.zeros((0, 2)), config))
+    xy = tracks.xy[-1]
+    for frame in range(1, len(prepared)):
+        moved, ok = klt_track(prepared[frame - 1].gray, prepared[frame].gray, xy, config)
+        ok &= _inside(prepared[frame].valid, moved)
+        ok[ok] = ransac_inliers(xy[ok], moved[ok], config.ransac_threshold_px)
+        tracks.add(frame, moved[ok], ids[ok])
+        fresh = _detect(prepared[frame], moved[ok], config)
+        ids = np.r_[ids[ok], tracks.add(frame, fresh)]
+        xy = np.r_[moved[ok], fresh]
+
+
+def _orb_links(keyframes: list[KeyframeInput], prepared: list[_Prepared],
+               config: TrackingConfig, tracks: _Tracks) -> None:
+    """Add two-view tracks from ORB matches between keyframes 2..orb_max_gap places apart."""
+    orb = cv2.ORB_create(nfeatures=config.orb_features)
+    features = [orb.detectAndCompute(p.gray, p.valid) for p in prepared]
+    matcher = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True)
+    for later in range(len(keyframes)):
+        for earlier in range(max(0, later - config.orb_max_gap), later - 1):
+            (kp_a, desc_a), (kp_b, desc_b) = features[earlier], features[later]
+            if desc_a is None or desc_b is None:
+                continue
+            matches = [m for m in matcher.match(desc_a, desc_b)
+                       if m.distance <= config.orb_max_hamming]
+            index = np.array([(m.queryIdx, m.trainIdx) for m in matches], dtype=int)
+            index = index.reshape(-1, 2)
+            xy_a = cv2.KeyPoint_convert(kp_a)[index[:, 0]].reshape(-1, 2).astype(np.float64)
+            xy_b = cv2.KeyPoint_convert(kp_b)[index[:, 1]].reshape(-1, 2).astype(np.float64)
+            keep = ransac_inliers(xy_a, xy_b, config.ransac_threshold_px)
+            ids = tracks.add(earlier, xy_a[keep])
+            tracks.add(later, xy_b[keep], ids)
+
+
+def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed: np.ndarray,
+                  tracking: TrackingConfig, solver: SolverConfig) -> BAProblem:
+    """Match the keyframes and return the BA problem over them.
+
+    Args:
+        keyframes: the selected keyframes, oldest first.
+        T_world_cam: (K, 4, 4) initial poses (the current best, i.e. corrected, estimates).
+        fixed: (K,) bool gauge.
+        tracking: correspondence settings.
+        solver: solver settings (for the depth prior's sigma).
+
+    Returns:
+        A problem with relative-pose priors between consecutive keyframes from the raw poses.
+
+    """
+    prepared = [prepare(keyframe, tracking) for keyframe in keyframes]
+    tracks = _Tracks([], [], [])
+    _klt_tracks(prepared, tracking, tracks)
+    _orb_links(keyframes, prepared, tracking, tracks)
+    track, frame, xy = (np.concatenate(tracks.track), np.concatenate(tracks.frame),
+                        np.concatenate(tracks.xy))
+    order = np.lexsort((frame, track))
+    track, frame, xy = track[order], frame[order], xy[order]
+    first = np.r_[True, track[1:] != track[:-1]]
+    views = np.bincount(track, minlength=tracks.count)
+    host_frame, host_xy, host_track = frame[first], xy[first], track[first]
+    depth_maps = np.stack([keyframe.depth for keyframe in keyframes])
+    depth = depth_maps[host_frame, np.round(host_xy[:, 1]).astype(int),
+                       np.round(host_xy[:, 0]).astype(int)].astype(np.float64)
+    usable = (views[host_track] >= 2) & np.isfinite(depth) & (depth > 0)
+    new_id = np.full(tracks.count, -1)
+    new_id[host_track[usable]] = np.arange(np.count_nonzero(usable))
+    observed = ~first & (new_id[track] >= 0)
+    inv_depth = 1.0 / depth[usable]
+    raw = np.stack([k.T_world_cam for k in keyframes])
+    pairs = np.c_[np.arange(len(keyframes) - 1), np.arange(1, len(keyframes))]
+    return BAProblem(
+        T_world_cam=np.asarray(T_world_cam, dtype=np.float64),
+        intrinsics=np.stack([k.intrinsics.matrix() for k in keyframes]),
+        fixed=np.asarray(fixed, dtype=bool), host=host_frame[usable],
+        host_xy=host_xy[usable], inv_depth=inv_depth, prior_inv_depth=inv_depth,
+        prior_sigma=solver.depth_prior_rel_sigma * inv_depth, obs_track=new_id[track[observed]],
+        obs_frame=frame[observed], obs_xy=xy[observed], obs_weight=np.ones(observed.sum()),
+        prior_pairs=pairs, prior_T_rel=np.linalg.inv(raw[pairs[:, 0]]) @ raw[pairs[:, 1]])

@@ -1,0 +1,150 @@
+"""Bundle adjustment off the stream's thread: requests in through a queue, results out.
+
+``plan_request`` turns a pool selection into a request (initial poses = the current corrected
+poses, gauge = the oldest keyframe refined before); ``run_request`` builds correspondences and
+solves; ``BundleAdjustmentWorker`` runs requests in a background thread, so ``submit`` never
+waits, and hands results to a callback and/or to ``poll``.
+"""
+
+from collections.abc import Callable
+from dataclasses import dataclass
+import logging
+import queue
+import threading
+import time
+
+from infinihand_ros.ba.config import BAConfig
+from infinihand_ros.ba.corrections import CorrectionTrack
+from infinihand_ros.ba.correspondences import build_problem
+from infinihand_ros.ba.keyframe import BAOutput
+from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.ba.solver import BundleAdjuster
+from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.core.errors import InputError
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class BARequest:
+    """One BA call's input.
+
+    Attributes:
+        keyframes: the selected keyframes, oldest first (at least two).
+        T_world_cam: (K, 4, 4) initial poses (current corrected estimates).
+        fixed: (K,) bool gauge.
+
+    """
+
+    keyframes: tuple[KeyframeInput, ...]
+    T_world_cam: np.ndarray
+    fixed: np.ndarray
+
+    def __post_init__(self) -> None:
+        count = len(self.keyframes)
+        if count < 2:
+            raise InputError(f'BA request: needs at least two keyframes, got {count}')
+        if np.shape(self.T_world_cam) != (count, 4, 4) or np.shape(self.fixed) != (count,):
+            raise InputError(f'BA request: T_world_cam {np.shape(self.T_world_cam)} and fixed '
+                             f'{np.shape(self.fixed)} must match {count} keyframes')
+
+
+def plan_request(keyframes: list[KeyframeInput], corrections: CorrectionTrack) -> BARequest:
+    """Return the request for a selection: corrected initial poses, gauge on the oldest refined.
+
+    The fixed keyframe is the oldest one refined by an earlier call (continuity with what was
+    already published); in the first call it is the oldest keyframe.
+    """
+    times = np.array([keyframe.timestamp_ns for keyframe in keyframes])
+    raw = np.stack([keyframe.T_world_cam for keyframe in keyframes])
+    refined = np.array([corrections.is_refined(t) for t in times])
+    fixed = np.zeros(len(keyframes), dtype=bool)
+    fixed[int(np.argmax(refined)) if refined.any() else 0] = True
+    return BARequest(tuple(keyframes), corrections.correct(times, raw), fixed)
+
+
+def run_request(request: BARequest, config: BAConfig) -> BAOutput:
+    """Match the request's keyframes and solve; return the refined poses and statistics."""
+    start = time.perf_counter()
+    problem = build_problem(list(request.keyframes), request.T_world_cam, request.fixed,
+                            config.tracking, config.solver)
+    result = BundleAdjuster(config.solver).solve(problem)
+    return BAOutput(
+        frame_ids=np.array([k.frame_id for k in request.keyframes]),
+        timestamps_ns=np.array([k.timestamp_ns for k in request.keyframes]),
+        T_world_cam_raw=np.stack([k.T_world_cam for k in request.keyframes]),
+        T_world_cam_refined=result.T_world_cam, num_tracks=len(problem.host),
+        num_observations=len(problem.obs_track), num_inliers=int(result.inliers.sum()),
+        seconds=time.perf_counter() - start)
+
+
+class BundleAdjustmentWorker:
+    """Background thread that runs BA requests in order."""
+
+    def __init__(self, config: BAConfig,
+                 callback: Callable[[BAOutput], None] | None = None) -> None:
+        """Start the thread; each result goes to ``callback`` (if any) and to ``poll``."""
+        self.config = config
+        self._callback = callback
+        self._requests: queue.Queue[BARequest | None] = queue.Queue()
+        self._results: queue.Queue[BAOutput] = queue.Queue()
+        self.failures = 0
+        self._thread = threading.Thread(target=self._run, name='bundle_adjustment', daemon=True)
+        self._thread.start()
+
+    def submit(self, request: BARequest) -> None:
+        """Queue a request and return at once."""
+        if not self._thread.is_alive():
+            raise InputError('BA worker: submit() after close(); create a new worker')
+        self._requests.put(request)
+
+    def poll(self) -> list[BAOutput]:
+        """Return the results finished since the last poll, oldest first (never blocks)."""
+        out = []
+        while True:
+            try:
+                out.append(self._results.get_nowait())
+            except queue.Empty:
+                return out
+
+    def pending(self) -> int:
+        """Return the number of requests queued but not finished (approximate)."""
+        return self._requests.unfinished_tasks
+
+    def close(self, timeout_s: float | None = None) -> None:
+        """Finish the queued requests, then stop the thread."""
+        self._requests.put(None)
+        self._thread.join(timeout_s)
+
+    def __enter__(self) -> 'BundleAdjustmentWorker':
+        """Return the running worker."""
+        return self
+
+    def __exit__(self, *exc_info: object) -> None:
+        """Close the worker."""
+        self.close()
+
+    def _run(self) -> None:
+        """Serve requests until the stop sentinel."""
+        while True:
+            request = self._requests.get()
+            try:
+                if request is None:
+                    return
+                self._serve(request)
+            finally:
+                self._requests.task_done()
+
+    def _serve(self, request: BARequest) -> None:
+        """Run one request; a failed BA call is logged and counted, the thread keeps going."""
+        try:
+            output = run_request(request, self.config)
+        except (InfiniHandError, ValueError, np.linalg.LinAlgError):
+            self.failures += 1
+            logger.exception('BA call over frames %s failed; poses stay uncorrected',
+                             [k.frame_id for k in request.keyframes])
+            return
+        self._results.put(output)
+        if self._callback is not None:
+            self._callback(output)

@@ -1,0 +1,55 @@
+"""KLT/ORB correspondences on synthetic frames agree with the true depth and poses."""
+
+from ba_builders import synth_keyframe
+from infinihand_ros.ba import costs
+from infinihand_ros.ba.config import BAConfig
+from infinihand_ros.ba.correspondences import build_problem
+from infinihand_ros.ba.correspondences import ransac_inliers
+from infinihand_ros.core import geometry
+from infinihand_ros.synth.sequence import SynthConfig
+from infinihand_ros.synth.sequence import SyntheticSequence
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope='module')
+def keyframes() -> list:
+    """Return 6 keyframes, 3 frames apart, of a synthetic sequence with hands."""
+    sequence = SyntheticSequence(SynthConfig(), seed=7, num_frames=16)
+    return [synth_keyframe(sequence.frame(index)) for index in range(0, 16, 3)]
+
+
+def test_tracks_reproject_within_a_pixel_of_the_truth(keyframes: list) -> None:
+    """Host pixel + true depth + true poses land within ~1 px (median) of each observation."""
+    config = BAConfig()
+    poses = np.stack([keyframe.T_world_cam for keyframe in keyframes])
+    fixed = np.arange(len(keyframes)) == 0
+    problem = build_problem(keyframes, poses, fixed, config.tracking, config.solver)
+    world_to_cam = geometry.invert_transform(poses)
+    state = costs.PoseState(world_to_cam[:, :3, :3], world_to_cam[:, :3, 3],
+                            problem.prior_inv_depth)
+    rays = costs.host_rays(problem.intrinsics, problem.host, problem.host_xy)
+    error = np.linalg.norm(costs.reprojection(
+        state, rays, problem.host, problem.obs_track, problem.obs_frame, problem.obs_xy,
+        problem.intrinsics, with_jacobians=False).residual, axis=-1)
+    assert len(problem.host) > 500
+    assert np.median(error) < 1.0
+    gap = problem.obs_frame - problem.host[problem.obs_track]
+    assert np.count_nonzero(gap >= 2) > 100, 'no link between non-adjacent keyframes'
+    # No host pixel or observation lies on a hand.
+    hands = np.stack([keyframe.hand_mask for keyframe in keyframes])
+    for frame, xy in ((problem.host, problem.host_xy), (problem.obs_frame, problem.obs_xy)):
+        col, row = np.round(xy).astype(int).T
+        assert not hands[frame, row, col].any()
+
+
+def test_ransac_rejects_moved_pairs(rng) -> None:
+    """Pairs related by a camera motion pass; pairs moved off their epipolar line do not."""
+    points = np.c_[rng.uniform(-2, 2, (200, 2)), rng.uniform(3, 6, 200)]
+    k = np.array([[400.0, 0, 260], [0, 400.0, 190], [0, 0, 1]])
+    xy_a = geometry.project_points(points, k)
+    xy_b = geometry.project_points(points + [0.3, 0.05, 0.1], k)
+    xy_b[:20] += rng.uniform(15, 30, (20, 2))
+    inliers = ransac_inliers(xy_a, xy_b, threshold_px=1.0)
+    assert inliers[20:].mean() > 0.95
+    assert inliers[:20].mean() < 0.1

@@ -1,0 +1,71 @@
+"""Background BA worker: submit() returns at once, results arrive by callback and poll."""
+
+import threading
+
+from ba_builders import synth_keyframe
+from infinihand_ros.ba.config import BAConfig
+from infinihand_ros.ba.corrections import CorrectionTrack
+from infinihand_ros.ba.worker import BundleAdjustmentWorker
+from infinihand_ros.ba.worker import plan_request
+from infinihand_ros.ba.worker import run_request
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.synth.sequence import SynthConfig
+from infinihand_ros.synth.sequence import SyntheticSequence
+import numpy as np
+import pytest
+
+
+@pytest.fixture(scope='module')
+def keyframes() -> list:
+    """Return 5 keyframes, 2 frames apart, of a synthetic sequence."""
+    sequence = SyntheticSequence(SynthConfig(), seed=3, num_frames=10)
+    return [synth_keyframe(sequence.frame(index)) for index in range(0, 10, 2)]
+
+
+def test_submit_never_waits_and_results_arrive(keyframes: list) -> None:
+    """While the worker is busy (its callback held), submit() still returns; both results come."""
+    first_done = threading.Event()
+    release = threading.Event()
+    received = []
+
+    def callback(output) -> None:
+        received.append(output)
+        first_done.set()
+        assert release.wait(timeout=60.0)
+
+    request = plan_request(keyframes, CorrectionTrack())
+    with BundleAdjustmentWorker(BAConfig(), callback) as worker:
+        worker.submit(request)
+        assert first_done.wait(timeout=60.0)
+        worker.submit(request)  # the worker thread is blocked: this must not wait for it
+        assert len(received) == 1 and worker.pending() == 2
+        release.set()
+    assert len(received) == 2
+    polled = worker.poll()
+    assert [p.frame_ids.tolist() for p in polled] == [[0, 2, 4, 6, 8]] * 2
+    assert all(p.num_inliers > 100 for p in polled)
+    assert worker.failures == 0
+    assert worker.poll() == []
+
+
+def test_plan_request_fixes_the_oldest_refined_keyframe(keyframes: list) -> None:
+    """First call: the oldest is fixed; later: the oldest keyframe refined before."""
+    corrections = CorrectionTrack()
+    first = plan_request(keyframes[:3], corrections)
+    assert first.fixed.tolist() == [True, False, False]
+    output = run_request(first, BAConfig())
+    corrections.update(output.timestamps_ns, output.T_world_cam_refined, output.T_world_cam_raw)
+    second = plan_request(keyframes[1:], corrections)
+    assert second.fixed.tolist() == [True, False, False, False]
+    np.testing.assert_allclose(second.T_world_cam[0], output.T_world_cam_refined[1], atol=1e-9)
+    # Exact keyframes and depths: the refined poses stay at the truth.
+    truth = np.stack([keyframe.T_world_cam for keyframe in keyframes[:3]])
+    assert np.abs(output.T_world_cam_refined[:, :3, 3] - truth[:, :3, 3]).max() < 0.01
+
+
+def test_submit_after_close_is_refused(keyframes: list) -> None:
+    """A closed worker says how to continue."""
+    worker = BundleAdjustmentWorker(BAConfig())
+    worker.close()
+    with pytest.raises(InputError, match='create a new worker'):
+        worker.submit(plan_request(keyframes, CorrectionTrack()))
