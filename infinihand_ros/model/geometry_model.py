@@ -1,0 +1,99 @@
+"""The geometry branch put together: aggregator, causal camera head, DPT depth and mask heads.
+
+Attribute names (``aggregator``, ``camera_head``, ``depth_head``) mirror LingBot-Map so its
+checkpoint loads by identity; ``mask_head`` is ours (paper Sec. 3.2). The aggregator runs in
+bf16 autocast on CUDA (when configured); the heads run in float32.
+"""
+
+from dataclasses import dataclass
+
+from infinihand_ros.model.aggregator import Aggregator
+from infinihand_ros.model.config import GeometryConfig
+from infinihand_ros.model.heads.camera_head import CameraHead
+from infinihand_ros.model.heads.dpt_head import activate_depth
+from infinihand_ros.model.heads.dpt_head import DPTHead
+from infinihand_ros.model.heads.mask_head import activate_masks
+from infinihand_ros.model.heads.mask_head import init_mask_head_from_depth
+from infinihand_ros.model.heads.mask_head import NUM_MASK_CHANNELS
+from infinihand_ros.model.streaming_memory import BlockPlan
+from infinihand_ros.model.streaming_memory import KVMemory
+import torch
+from torch import nn
+
+DEPTH_CHANNELS = 2  # depth, confidence
+
+
+@dataclass(frozen=True)
+class GeometryOutput:
+    """Per-frame outputs of one block of S frames.
+
+    Attributes:
+        pose_encoding: (B, S, 9) final camera encoding (see ``model/pose_encoding.py``).
+        pose_encoding_iterations: the camera head's encodings of every refinement pass.
+        depth: (B, S, H, W) depth along the camera z axis, model units (no metric scale).
+        depth_conf: (B, S, H, W) confidence >= 1.
+        hand_masks: (B, S, 2, H, W) left/right hand probabilities in [0, 1].
+        patch_features: (B, S, 2C, Hp, Wp) the last selected aggregator layer's patch tokens
+            (frame and global outputs concatenated) on the patch grid; pixel (u, v) lies in
+            cell (v // patch_size, u // patch_size). This is what the hand branch crops.
+        patch_size: pixels per patch side.
+
+    """
+
+    pose_encoding: torch.Tensor
+    pose_encoding_iterations: tuple[torch.Tensor, ...]
+    depth: torch.Tensor
+    depth_conf: torch.Tensor
+    hand_masks: torch.Tensor
+    patch_features: torch.Tensor
+    patch_size: int
+
+
+class GeometryModel(nn.Module):
+    """LingBot-Map-shaped geometry branch plus the hand mask head."""
+
+    def __init__(self, config: GeometryConfig) -> None:
+        """Build every part from ``config``; the mask head starts from the depth head."""
+        super().__init__()
+        self.config = config
+        dim = config.aggregator.output_dim
+        self.aggregator = Aggregator(config.aggregator)
+        self.camera_head = CameraHead(config.camera_head, dim)
+        self.depth_head = DPTHead(config.dpt, dim, DEPTH_CHANNELS)
+        self.mask_head = DPTHead(config.dpt, dim, NUM_MASK_CHANNELS)
+        if not self.depth_head.norm.weight.is_meta:
+            init_mask_head_from_depth(self.mask_head, self.depth_head)
+
+    def new_memories(self) -> tuple[KVMemory, KVMemory]:
+        """Return empty (aggregator, camera head) memories sized for this model."""
+        aggregator = self.config.aggregator
+        return (KVMemory(aggregator.depth, self.config.memory.window,
+                         aggregator.num_special_tokens),
+                KVMemory(self.camera_head.memory_layers, None, aggregator.num_special_tokens))
+
+    def forward(self, images: torch.Tensor, plan: BlockPlan, aggregator_memory: KVMemory,
+                camera_memory: KVMemory) -> GeometryOutput:
+        """Run one block of frames.
+
+        Args:
+            images: (B, S, 3, H, W) RGB in [0, 1], H and W multiples of the patch size.
+            plan: the block's plan (see ``streaming_memory.FrameSchedule``).
+            aggregator_memory: memory of the global blocks (from ``new_memories``).
+            camera_memory: the camera head's causal memory (from ``new_memories``).
+
+        """
+        autocast = images.device.type == 'cuda' and self.config.autocast_bf16
+        with torch.autocast(images.device.type, dtype=torch.bfloat16, enabled=autocast):
+            aggregated = self.aggregator(images, plan, aggregator_memory)
+        with torch.autocast(images.device.type, enabled=False):
+            layers = tuple(layer.float() for layer in aggregated.layers)
+            encodings = self.camera_head(layers[-1], plan, camera_memory)
+            image_size = tuple(images.shape[-2:])
+            depth, depth_conf = activate_depth(
+                self.depth_head(layers, aggregated.patch_start, aggregated.grid, image_size))
+            masks = activate_masks(
+                self.mask_head(layers, aggregated.patch_start, aggregated.grid, image_size))
+        patches = layers[-1][:, :, aggregated.patch_start:]
+        features = patches.transpose(2, 3).unflatten(-1, aggregated.grid)
+        return GeometryOutput(encodings[-1], tuple(encodings), depth, depth_conf, masks,
+                              features, self.config.aggregator.patch_size)

@@ -1,0 +1,95 @@
+"""Streaming interface of the geometry branch: frames in, per-frame geometry out.
+
+``GeometryStream.step(images, keyframe)`` takes one frame or a window of frames (B=1, S, 3, H, W)
+RGB in [0, 1] and returns a ``GeometryOutput`` for every frame of the call. The first
+``memory.anchor_frames`` frames of a sequence are anchors (stored whatever their flag; pass them
+in one call to match the paper, which processes them together). Later frames are stored when
+their keyframe flag is set. A window of frames in one call gives the same outputs as its frames
+one by one (causal attention). ``reset()`` starts a new sequence.
+"""
+
+from collections.abc import Sequence
+from dataclasses import fields
+
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.model.geometry_model import GeometryModel
+from infinihand_ros.model.geometry_model import GeometryOutput
+from infinihand_ros.model.streaming_memory import FrameSchedule
+from infinihand_ros.model.streaming_memory import KVMemory
+import torch
+
+
+def _concat_outputs(first: GeometryOutput, second: GeometryOutput) -> GeometryOutput:
+    """Join two consecutive blocks' outputs along the frame axis."""
+    values = {}
+    for item in fields(GeometryOutput):
+        a, b = getattr(first, item.name), getattr(second, item.name)
+        if isinstance(a, torch.Tensor):
+            values[item.name] = torch.cat((a, b), dim=1)
+        elif isinstance(a, tuple):
+            values[item.name] = tuple(torch.cat(pair, dim=1) for pair in zip(a, b))
+        else:
+            values[item.name] = a
+    return GeometryOutput(**values)
+
+
+class GeometryStream:
+    """Holds one sequence's memories around a ``GeometryModel``."""
+
+    def __init__(self, model: GeometryModel) -> None:
+        """Wrap ``model``; the stream starts empty."""
+        self.model = model
+        self.schedule = FrameSchedule(model.config.memory.anchor_frames)
+        self.aggregator_memory, self.camera_memory = model.new_memories()
+
+    def reset(self) -> None:
+        """Forget the sequence (memories and frame counters)."""
+        self.schedule.reset()
+        self.aggregator_memory.reset()
+        self.camera_memory.reset()
+
+    @property
+    def memories(self) -> tuple[KVMemory, KVMemory]:
+        """Return the (aggregator, camera head) memories, e.g. to inspect cached tokens."""
+        return self.aggregator_memory, self.camera_memory
+
+    def step(self, images: torch.Tensor, keyframe: bool | Sequence[bool] = True
+             ) -> GeometryOutput:
+        """Process one or more frames and return their outputs.
+
+        Args:
+            images: (1, S, 3, H, W) float RGB in [0, 1] on the model's device; H and W multiples
+                of the patch size (the configured size is the one the weights expect).
+            keyframe: one flag for all S frames, or one per frame.
+
+        Raises:
+            InputError: for a wrong shape or dtype, or a flag list of the wrong length.
+
+        """
+        flags = self._check(images, keyframe)
+        remaining = self.schedule.anchors_remaining
+        if 0 < remaining < len(flags):
+            head = self.step(images[:, :remaining], flags[:remaining])
+            return _concat_outputs(head, self.step(images[:, remaining:], flags[remaining:]))
+        plan = self.schedule.plan(flags)
+        output = self.model(images, plan, self.aggregator_memory, self.camera_memory)
+        self.schedule.commit(plan)
+        return output
+
+    def _check(self, images: torch.Tensor, keyframe: bool | Sequence[bool]) -> list[bool]:
+        """Validate the input and return one keyframe flag per frame."""
+        patch = self.model.config.aggregator.patch_size
+        if (not isinstance(images, torch.Tensor) or images.dim() != 5 or images.shape[0] != 1
+                or images.shape[2] != 3 or not images.is_floating_point()):
+            got = tuple(images.shape) if isinstance(images, torch.Tensor) else type(images)
+            raise InputError(f'geometry stream: expected a float tensor (1, S, 3, H, W) in '
+                             f'[0, 1], got {got}')
+        height, width = images.shape[-2:]
+        if height % patch or width % patch:
+            raise InputError(f'geometry stream: image size {height}x{width} is not a multiple '
+                             f'of the patch size {patch}; resize or crop the frames')
+        count = images.shape[1]
+        flags = [bool(keyframe)] * count if isinstance(keyframe, bool) else list(keyframe)
+        if len(flags) != count:
+            raise InputError(f'geometry stream: {len(flags)} keyframe flags for {count} frames')
+        return flags

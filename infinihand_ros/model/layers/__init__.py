@@ -1,0 +1,1 @@
+"""Reusable transformer parts: attention with qk-norm, rotary embeddings, blocks, patch embeds."""
