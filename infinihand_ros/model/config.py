@@ -147,13 +147,20 @@ class DptConfig:
 
 @dataclass(frozen=True)
 class MemoryConfig:
-    """Geometric Context Attention memory: anchor frames, keyframe window, trajectory memory."""
+    """Geometric Context Attention memory: anchor frames, keyframe window, trajectory memory.
+
+    ``max_trajectory_frames`` bounds the trajectory memory (and the camera head's cache) to the
+    newest evicted keyframes, so memory stays flat over arbitrarily long streams (LingBot-Map
+    sizes its cache for 1,024 frames).
+    """
 
     anchor_frames: int = 2
     window: int = 8
+    max_trajectory_frames: int = 1024
 
     def __post_init__(self) -> None:
-        _require_positive('memory', anchor_frames=self.anchor_frames)
+        _require_positive('memory', anchor_frames=self.anchor_frames,
+                          max_trajectory_frames=self.max_trajectory_frames)
         if self.window < 0:
             raise ValueError(f'memory.window must be >= 0, got {self.window}')
 

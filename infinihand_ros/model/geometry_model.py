@@ -66,10 +66,11 @@ class GeometryModel(nn.Module):
 
     def new_memories(self) -> tuple[KVMemory, KVMemory]:
         """Return empty (aggregator, camera head) memories sized for this model."""
-        aggregator = self.config.aggregator
-        return (KVMemory(aggregator.depth, self.config.memory.window,
-                         aggregator.num_special_tokens),
-                KVMemory(self.camera_head.memory_layers, None, aggregator.num_special_tokens))
+        aggregator, memory = self.config.aggregator, self.config.memory
+        return (KVMemory(aggregator.depth, memory.window, aggregator.num_special_tokens,
+                         memory.max_trajectory_frames),
+                KVMemory(self.camera_head.memory_layers, memory.max_trajectory_frames,
+                         aggregator.num_special_tokens, memory.max_trajectory_frames))
 
     def forward(self, images: torch.Tensor, plan: BlockPlan, aggregator_memory: KVMemory,
                 camera_memory: KVMemory) -> GeometryOutput:

@@ -144,6 +144,12 @@ class _TokenBuffer:
     def view(self) -> torch.Tensor | None:
         return None if self.data is None else self.data[..., :self.length, :]
 
+    def keep_last(self, count: int) -> None:
+        """Drop all but the newest ``count`` tokens."""
+        if self.data is not None and self.length > count:
+            self.data[..., :count, :] = self.data[..., self.length - count:self.length, :].clone()
+            self.length = count
+
 
 class _LayerStore:
     """Cached keys/values of one layer: trajectory, anchors and window, each (2, B, H, n, D)."""
@@ -198,18 +204,23 @@ class KVMemory:
     ``commit()`` stores the block's keys/values and evicts frames beyond the window.
     """
 
-    def __init__(self, num_layers: int, window: int | None, special_tokens: int) -> None:
+    def __init__(self, num_layers: int, window: int | None, special_tokens: int,
+                 max_trajectory_frames: int | None = None) -> None:
         """Build an empty memory for ``num_layers`` layers.
 
         Args:
             num_layers: attention layers sharing this policy.
             window: keyframes kept in full, or None to keep every keyframe.
             special_tokens: leading tokens of each frame kept as trajectory memory on eviction.
+            max_trajectory_frames: trajectory memory keeps at most this many evicted frames
+                (the newest; up to a quarter more between trims), or None for no limit. This
+                bounds memory and attention cost over arbitrarily long streams.
 
         """
         self.num_layers = num_layers
         self.window = window
         self.special_tokens = special_tokens
+        self.max_trajectory_frames = max_trajectory_frames
         self.reset()
 
     def reset(self) -> None:
@@ -264,7 +275,12 @@ class KVMemory:
     def _evict(self, store: _LayerStore) -> None:
         """Move the oldest window frames' special tokens to trajectory memory."""
         while self.window is not None and len(store.window) > self.window:
-            store.trajectory.append(store.window.popleft()[..., :self.special_tokens, :])
+            kept = store.window.popleft()[..., :self.special_tokens, :]
+            store.trajectory.append(kept)
+            if self.max_trajectory_frames is not None:
+                limit = self.max_trajectory_frames * kept.shape[-2]
+                if store.trajectory.length > limit + limit // 4:
+                    store.trajectory.keep_last(limit)
 
     def _build_masks(self, plan: BlockPlan, per_frame: int, device: torch.device
                      ) -> torch.Tensor | None:

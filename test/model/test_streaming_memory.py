@@ -37,6 +37,21 @@ def test_cached_tokens_are_anchor_plus_window_plus_trajectory(num_frames: int) -
     assert [memory.cached_tokens(layer) for layer in range(layers)] == [expected] * layers
 
 
+def test_trajectory_memory_is_bounded_on_long_streams() -> None:
+    """With a trajectory cap the cache stops growing, however long the stream."""
+    anchor, window, per_frame, cap = 2, 3, 10, 8
+    memory = KVMemory(1, window, SPECIAL, max_trajectory_frames=cap)
+    schedule = FrameSchedule(anchor)
+    _run_block(memory, schedule, [True] * anchor, per_frame, 1)
+    sizes = []
+    for _ in range(200):
+        _run_block(memory, schedule, [True], per_frame, 1)
+        sizes.append(memory.cached_tokens(0))
+    full = (anchor + window) * per_frame
+    assert max(sizes) <= full + SPECIAL * (cap + cap // 4)
+    assert min(sizes[-50:]) >= full + SPECIAL * cap
+
+
 def test_non_keyframes_attend_without_being_stored() -> None:
     """A non-keyframe leaves the cache and the time index unchanged."""
     memory = KVMemory(1, 4, SPECIAL)
