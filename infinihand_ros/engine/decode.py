@@ -15,7 +15,6 @@ from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.datatypes import ManoParams
-from infinihand_ros.core.hand_conventions import WRIST
 from infinihand_ros.core.mano_frames import transform_mano_params
 from infinihand_ros.engine.frame_input import Letterbox
 from infinihand_ros.engine.metric_scale import MetricScaleEstimator
@@ -66,7 +65,7 @@ class _BlockHands:
     root_joint: np.ndarray
     joints_cam: np.ndarray
     joints_2d: np.ndarray
-    model_depth: np.ndarray
+    depth_ratio: np.ndarray
 
 
 def _intrinsics_matrices(frames: list[PreparedFrame], predicted: torch.Tensor) -> torch.Tensor:
@@ -91,11 +90,8 @@ def _detect_hands(output: GeometryOutput, frames: list[PreparedFrame], hand_bran
     images = torch.stack([frame.pixels for frame in frames]).to(masks.device)
     out = hand_branch(images, output.patch_features[0], intrinsics.to(masks.device),
                       HandBoxes(boxes[frame_index, side], frame_index, side))
-    height, width = masks.shape[-2:]
-    wrist = out.joints_2d[:, WRIST].round().long()
-    columns = wrist[:, 0].clamp(0, width - 1)
-    rows = wrist[:, 1].clamp(0, height - 1)
-    model_depth = output.depth[0, frame_index, rows, columns]
+    depth_ratio = _hand_depth_ratios(output.depth[0], frame_index, out.joints_2d,
+                                     out.joints_cam[..., 2])
 
     def numpy(tensor: torch.Tensor) -> np.ndarray:
         return tensor.detach().double().cpu().numpy()
@@ -106,7 +102,34 @@ def _detect_hands(output: GeometryOutput, frames: list[PreparedFrame], hand_bran
         global_orient=numpy(out.mano_cam.global_orient), hand_pose=numpy(out.mano_cam.hand_pose),
         betas=numpy(out.mano_cam.betas), transl=numpy(out.mano_cam.transl),
         root_joint=numpy(out.root_joint), joints_cam=numpy(out.joints_cam),
-        joints_2d=numpy(out.joints_2d), model_depth=numpy(model_depth))
+        joints_2d=numpy(out.joints_2d), depth_ratio=numpy(depth_ratio))
+
+
+def _hand_depth_ratios(depth: torch.Tensor, frame_index: torch.Tensor, joints_2d: torch.Tensor,
+                       joints_depth: torch.Tensor) -> torch.Tensor:
+    """Return per hand the median of metric joint depth / model depth at the joint's pixel.
+
+    Joints outside the image or with non-positive depths are left out (NaN when none is left);
+    the median over the 21 joints makes occluded joints and the limb radius matter little.
+
+    Args:
+        depth: (S, H, W) model depth maps of the block.
+        frame_index: (N,) frame of each hand.
+        joints_2d: (N, 21, 2) joint pixels (u, v).
+        joints_depth: (N, 21) metric joint depths from the hand branch.
+
+    """
+    height, width = depth.shape[-2:]
+    pixels = joints_2d.round().long()
+    inside = ((pixels[..., 0] >= 0) & (pixels[..., 0] < width) & (pixels[..., 1] >= 0)
+              & (pixels[..., 1] < height))
+    columns = pixels[..., 0].clamp(0, width - 1)
+    rows = pixels[..., 1].clamp(0, height - 1)
+    model = depth[frame_index[:, None], rows, columns]
+    valid = inside & (model > 0) & (joints_depth > 0) & torch.isfinite(model)
+    ratios = torch.where(valid, joints_depth / model.clamp_min(1e-12),
+                         torch.full_like(model, float('nan')))
+    return ratios.nanmedian(dim=-1).values
 
 
 def _hand_state(hands: _BlockHands, row: int, letterbox: Letterbox, pose: CameraPose
@@ -159,7 +182,7 @@ def decode_block(output: GeometryOutput, frames: list[PreparedFrame], hand_branc
     results = []
     for row, frame in enumerate(frames):
         rows = np.flatnonzero(hands.frame == row)
-        scale.observe(hands.joints_cam[rows, WRIST, 2], hands.model_depth[rows])
+        scale.observe(hands.depth_ratio[rows], np.ones(len(rows)))
         metric = scale.estimate().scale
         transform = cam_to_world[row].copy()
         transform[:3, 3] *= metric
