@@ -31,6 +31,7 @@ class EngineConfig:
         fov_range_deg: predicted fields of view are clamped to this range (the camera head's
             ReLU allows 0, which no camera has).
         metric_scale: running metric-scale estimate from the hands.
+        checkpoint: our checkpoint directory (its configs win); None: seeded untrained weights.
 
     """
 
@@ -44,6 +45,7 @@ class EngineConfig:
     presence_threshold: float = 0.5
     fov_range_deg: tuple[float, float] = (5.0, 170.0)
     metric_scale: MetricScaleConfig = field(default_factory=MetricScaleConfig)
+    checkpoint: str | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
