@@ -53,7 +53,7 @@ class SolverConfig:
     rel_pose_sigma_m: float = 0.05
     rel_pose_sigma_rad: float = 0.02
     initial_damping: float = 1e-4
-    min_relative_decrease: float = 1e-6
+    min_relative_decrease: float = 1e-4
     min_inverse_depth: float = 1e-3
 
     def __post_init__(self) -> None:
@@ -80,6 +80,8 @@ class TrackingConfig:
         min_corner_distance_px: minimum distance between detected corners (px).
         klt_window_px: KLT window side (px).
         klt_levels: KLT pyramid levels above the base image.
+        klt_iterations: most LK iterations per pyramid level.
+        klt_epsilon_px: LK stops at a level when its update is smaller than this (px).
         fb_threshold_px: forward-backward KLT error above which a track is cut (px).
         hand_margin_px: hand masks are dilated by this much before excluding pixels (px).
         ransac_threshold_px: fundamental-matrix RANSAC inlier threshold (px).
@@ -96,6 +98,8 @@ class TrackingConfig:
     min_corner_distance_px: float = 10.0
     klt_window_px: int = 15
     klt_levels: int = 3
+    klt_iterations: int = 10
+    klt_epsilon_px: float = 0.03
     fb_threshold_px: float = 1.0
     hand_margin_px: int = 10
     ransac_threshold_px: float = 1.0
@@ -109,9 +113,29 @@ class TrackingConfig:
         if self.max_corners < 8 or self.orb_features < 8 or self.klt_levels < 0:
             raise ValueError(f'need max_corners >= 8, orb_features >= 8, klt_levels >= 0, got '
                              f'{self.max_corners}, {self.orb_features}, {self.klt_levels}')
+        if self.klt_iterations < 1 or self.klt_epsilon_px <= 0:
+            raise ValueError(f'need klt_iterations >= 1 and klt_epsilon_px > 0, got '
+                             f'{self.klt_iterations}, {self.klt_epsilon_px}')
         if not 0.0 < self.min_depth_m < self.max_depth_m:
             raise ValueError(f'need 0 < min_depth_m < max_depth_m, got {self.min_depth_m}, '
                              f'{self.max_depth_m}')
+
+
+@dataclass(frozen=True)
+class CorrectionConfig:
+    """Feeding refined poses back to the live stream.
+
+    Attributes:
+        blend_s: live frames move from the previous correction to a new BA result over this
+            much frame time instead of jumping (s); 0 applies a result at once.
+
+    """
+
+    blend_s: float = 0.3
+
+    def __post_init__(self) -> None:
+        if self.blend_s < 0:
+            raise ValueError(f'corrections need blend_s >= 0 s, got {self.blend_s}')
 
 
 @dataclass(frozen=True)
@@ -121,6 +145,7 @@ class BAConfig:
     pool: PoolConfig = field(default_factory=PoolConfig)
     solver: SolverConfig = field(default_factory=SolverConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
+    corrections: CorrectionConfig = field(default_factory=CorrectionConfig)
 
 
 def load_ba_config(path: str | Path | None = None) -> BAConfig:

@@ -6,7 +6,15 @@ refined keyframes a < t < b the correction follows the geodesic
 ``D_t = D_a Exp(u Log(D_a^-1 D_b))`` with ``u`` from the timestamps; frames before the oldest
 refined keyframe take its correction and frames after the newest (the live frames) take the
 newest. The raw trajectory is never modified: corrections are applied on read.
+
+Live frames (published as they arrive) do not jump when a BA call lands: from the first live
+frame after an update, their correction moves along the geodesic from the correction published
+last to the newest one over ``blend_s`` seconds of frame time (BA.md, "Feeding refined poses
+back"). ``corrections``/``correct`` always give the newest estimate (for BA's initial poses and
+for evaluation); only ``correct_live`` blends.
 """
+
+from dataclasses import dataclass
 
 from infinihand_ros.ba.lie import skew
 from infinihand_ros.core.errors import InputError
@@ -42,6 +50,15 @@ def similarity_log(transform: np.ndarray) -> np.ndarray:
     return out
 
 
+def geodesic(start: np.ndarray, end: np.ndarray, fraction: float | np.ndarray) -> np.ndarray:
+    """Return ``start Exp(u Log(start^-1 end))`` between transforms (4, 4) at fractions u.
+
+    A scalar ``fraction`` gives one transform (4, 4); fractions (T,) give (T, 4, 4).
+    """
+    step = similarity_log(np.linalg.inv(start) @ end)
+    return start @ linalg.expm(np.asarray(fraction, dtype=np.float64)[..., None, None] * step)
+
+
 def interpolate_corrections(key_times_ns: np.ndarray, key_corrections: np.ndarray,
                             times_ns: np.ndarray) -> np.ndarray:
     """Return the correction (T, 4, 4) of each query time.
@@ -69,19 +86,40 @@ def interpolate_corrections(key_times_ns: np.ndarray, key_corrections: np.ndarra
     inside = (times > keys[0]) & (times < keys[-1])
     for index in np.unique(segment[inside]):
         chosen = inside & (segment == index)
-        start, end = corrections[index], corrections[index + 1]
         fraction = (times[chosen] - keys[index]) / (keys[index + 1] - keys[index])
-        step = similarity_log(np.linalg.inv(start) @ end)
-        out[chosen] = start @ linalg.expm(fraction[:, None, None] * step)
+        out[chosen] = geodesic(corrections[index], corrections[index + 1], fraction)
     return out
+
+
+@dataclass(frozen=True)
+class _Blend:
+    """A blend of live corrections in progress: from ``origin`` at ``start_ns`` on."""
+
+    start_ns: int
+    origin: np.ndarray  # (4, 4) the live correction published before the update
 
 
 class CorrectionTrack:
     """Corrections of every keyframe refined so far, keyed by keyframe timestamp."""
 
-    def __init__(self) -> None:
-        """Start without corrections (raw poses pass through unchanged)."""
+    def __init__(self, blend_s: float = 0.0) -> None:
+        """Start without corrections (raw poses pass through unchanged).
+
+        Args:
+            blend_s: live corrections move to a new BA result over this much frame time (s);
+                0 applies it at once.
+
+        Raises:
+            ValueError: for a negative ``blend_s``.
+
+        """
+        if blend_s < 0:
+            raise ValueError(f'CorrectionTrack: blend_s must be >= 0 s, got {blend_s}')
+        self._blend_ns = int(round(blend_s * 1e9))
         self._by_time: dict[int, np.ndarray] = {}
+        self._last_live = np.eye(4)
+        self._blend_pending = False
+        self._blend: _Blend | None = None
 
     def __len__(self) -> int:
         """Return the number of corrected keyframes."""
@@ -90,11 +128,13 @@ class CorrectionTrack:
     def update(self, times_ns: np.ndarray, T_refined: np.ndarray, T_raw: np.ndarray) -> None:
         """Record refined poses (K, 4, 4) of keyframes with raw poses (K, 4, 4) at ``times_ns``.
 
-        A keyframe refined again replaces its earlier correction.
+        A keyframe refined again replaces its earlier correction. The next ``correct_live``
+        call starts a blend from the live correction published last.
         """
         corrections = keyframe_corrections(T_refined, T_raw)
         for time_ns, correction in zip(np.asarray(times_ns, dtype=np.int64), corrections):
             self._by_time[int(time_ns)] = correction
+        self._blend_pending = self._blend_ns > 0
 
     def is_refined(self, time_ns: int) -> bool:
         """Return whether the keyframe at ``time_ns`` was refined by an earlier BA call."""
@@ -111,3 +151,28 @@ class CorrectionTrack:
     def correct(self, times_ns: np.ndarray, T_raw: np.ndarray) -> np.ndarray:
         """Return corrected camera-to-world poses (T, 4, 4) of raw poses (T, 4, 4)."""
         return self.corrections(times_ns) @ np.asarray(T_raw, dtype=np.float64)
+
+    def live_correction(self, time_ns: int) -> np.ndarray:
+        """Return the correction (4, 4) to publish for a live frame at ``time_ns``.
+
+        Live frames come in time order. After an update, the first live frame keeps the
+        correction published last; later ones move geodesically to the newest correction and
+        reach it ``blend_s`` after that frame.
+        """
+        target = self.corrections(np.array([time_ns]))[0]
+        if self._blend_pending:
+            self._blend = _Blend(int(time_ns), self._last_live)
+            self._blend_pending = False
+        live = target
+        if self._blend is not None:
+            fraction = (int(time_ns) - self._blend.start_ns) / self._blend_ns
+            if fraction < 1.0:
+                live = geodesic(self._blend.origin, target, max(fraction, 0.0))
+            else:
+                self._blend = None
+        self._last_live = live
+        return live
+
+    def correct_live(self, time_ns: int, T_raw: np.ndarray) -> np.ndarray:
+        """Return the corrected camera-to-world pose (4, 4) of a live frame's raw pose (4, 4)."""
+        return self.live_correction(time_ns) @ np.asarray(T_raw, dtype=np.float64)

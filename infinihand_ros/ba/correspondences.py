@@ -1,9 +1,11 @@
 """Correspondences between selected keyframes, turned into a ``BAProblem``.
 
-KLT (goodFeaturesToTrack + pyramidal Lucas-Kanade with a forward-backward check) links
-consecutive keyframes into tracks; ORB matching re-links keyframes 2..``orb_max_gap`` places
-apart. Every pairing passes fundamental-matrix RANSAC. Hand pixels (dilated masks) and pixels
-without a valid model depth are excluded. A track's host is its oldest keyframe; its depth prior
+KLT (pyramidal Lucas-Kanade with a forward-backward check) links consecutive keyframes into
+tracks, topped up in each keyframe with its best corners away from the tracked points; ORB
+matching re-links keyframes 2..``orb_max_gap`` places apart. Corners, ORB features and masks
+come from ``ba.features`` (cached per keyframe across calls). Every pairing passes
+fundamental-matrix RANSAC. Hand pixels (dilated masks) and pixels without a valid model depth
+are excluded. A track's host is its oldest keyframe; its depth prior
 and initial inverse depth come from the host's depth map.
 """
 
@@ -12,22 +14,16 @@ from dataclasses import dataclass
 import cv2
 from infinihand_ros.ba.config import SolverConfig
 from infinihand_ros.ba.config import TrackingConfig
+from infinihand_ros.ba.features import FeatureCache
+from infinihand_ros.ba.features import KeyframeFeatures
 from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.problem import BAProblem
+from infinihand_ros.core.errors import InputError
 import numpy as np
+from scipy import spatial
 
-#: LK termination: iterations and epsilon (px).
-LK_CRITERIA = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 30, 0.01)
 #: Fewer point pairs than this skip RANSAC's model fit (all pairs are dropped).
 MIN_RANSAC_PAIRS = 8
-
-
-@dataclass(frozen=True)
-class _Prepared:
-    """Per-keyframe images for matching."""
-
-    gray: np.ndarray  # (H, W) uint8
-    valid: np.ndarray  # (H, W) uint8, 255 where tracking is allowed
 
 
 @dataclass
@@ -48,18 +44,6 @@ class _Tracks:
         self.frame.append(np.full(len(xy), frame))
         self.xy.append(np.asarray(xy, dtype=np.float64).reshape(-1, 2))
         return track
-
-
-def prepare(keyframe: KeyframeInput, config: TrackingConfig) -> _Prepared:
-    """Return the grey image and the mask of trackable pixels (no hand, valid depth)."""
-    hands = keyframe.hand_mask.astype(np.uint8)
-    if config.hand_margin_px > 0:
-        size = 2 * config.hand_margin_px + 1
-        hands = cv2.dilate(hands, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size)))
-    depth = keyframe.depth
-    good_depth = np.isfinite(depth) & (depth >= config.min_depth_m) & (depth <= config.max_depth_m)
-    valid = ((hands == 0) & good_depth).astype(np.uint8) * 255
-    return _Prepared(cv2.cvtColor(keyframe.image, cv2.COLOR_RGB2GRAY), valid)
 
 
 def _inside(valid: np.ndarray, xy: np.ndarray) -> np.ndarray:
@@ -90,72 +74,69 @@ def klt_track(gray_a: np.ndarray, gray_b: np.ndarray, xy_a: np.ndarray,
     if len(xy_a) == 0:
         return np.zeros((0, 2)), np.zeros(0, dtype=bool)
     window = (config.klt_window_px, config.klt_window_px)
+    criteria = (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, config.klt_iterations,
+                config.klt_epsilon_px)
     start = xy_a.astype(np.float32).reshape(-1, 1, 2)
     forward, ok_f, _ = cv2.calcOpticalFlowPyrLK(gray_a, gray_b, start, None, winSize=window,
-                                                maxLevel=config.klt_levels, criteria=LK_CRITERIA)
+                                                maxLevel=config.klt_levels, criteria=criteria)
     back, ok_b, _ = cv2.calcOpticalFlowPyrLK(gray_b, gray_a, forward, None, winSize=window,
-                                             maxLevel=config.klt_levels, criteria=LK_CRITERIA)
+                                             maxLevel=config.klt_levels, criteria=criteria)
     fb_error = np.linalg.norm((back - start).reshape(-1, 2), axis=-1)
     ok = (ok_f.ravel() > 0) & (ok_b.ravel() > 0) & (fb_error < config.fb_threshold_px)
     return forward.reshape(-1, 2).astype(np.float64), ok
 
 
-def _detect(prepared: _Prepared, existing: np.ndarray, config: TrackingConfig) -> np.ndarray:
-    """Return new corners (N, 2) on trackable pixels, away from ``existing`` (E, 2) points."""
-    taken = np.zeros_like(prepared.valid)
-    height, width = taken.shape
-    col = np.clip(np.round(existing[:, 0]).astype(int), 0, width - 1)
-    row = np.clip(np.round(existing[:, 1]).astype(int), 0, height - 1)
-    taken[row, col] = 1
-    size = 2 * int(config.min_corner_distance_px) + 1
-    taken = cv2.dilate(taken, cv2.getStructuringElement(cv2.MORPH_ELLIPSE, (size, size)))
-    mask = np.where(taken > 0, 0, prepared.valid).astype(np.uint8)
+def _top_up(features: KeyframeFeatures, existing: np.ndarray,
+            config: TrackingConfig) -> np.ndarray:
+    """Return the best cached corners (N, 2) at least the corner distance from ``existing``."""
     wanted = config.max_corners - len(existing)
-    if wanted <= 0:
+    corners = features.corners
+    if wanted <= 0 or len(corners) == 0:
         return np.zeros((0, 2))
-    corners = cv2.goodFeaturesToTrack(prepared.gray, wanted, config.corner_quality,
-                                      config.min_corner_distance_px, mask=mask)
-    return np.zeros((0, 2)) if corners is None else corners.reshape(-1, 2).astype(np.float64)
+    if len(existing):
+        gap, _ = spatial.cKDTree(existing).query(
+            corners, distance_upper_bound=config.min_corner_distance_px)
+        corners = corners[gap >= config.min_corner_distance_px]
+    return corners[:wanted]
 
 
-def _klt_tracks(prepared: list[_Prepared], config: TrackingConfig, tracks: _Tracks) -> None:
+def _klt_tracks(features: list[KeyframeFeatures], config: TrackingConfig,
+                tracks: _Tracks) -> None:
     """Chain KLT tracks through consecutive keyframes (new corners topped up in each)."""
-    ids = tracks.add(0, _detect(prepared[0], np.zeros((0, 2)), config))
+    ids = tracks.add(0, _top_up(features[0], np.zeros((0, 2)), config))
     xy = tracks.xy[-1]
-    for frame in range(1, len(prepared)):
-        moved, ok = klt_track(prepared[frame - 1].gray, prepared[frame].gray, xy, config)
-        ok &= _inside(prepared[frame].valid, moved)
+    for frame in range(1, len(features)):
+        moved, ok = klt_track(features[frame - 1].gray, features[frame].gray, xy, config)
+        ok &= _inside(features[frame].valid, moved)
         ok[ok] = ransac_inliers(xy[ok], moved[ok], config.ransac_threshold_px)
         tracks.add(frame, moved[ok], ids[ok])
-        fresh = _detect(prepared[frame], moved[ok], config)
+        fresh = _top_up(features[frame], moved[ok], config)
         ids = np.r_[ids[ok], tracks.add(frame, fresh)]
         xy = np.r_[moved[ok], fresh]
 
 
-def _orb_links(keyframes: list[KeyframeInput], prepared: list[_Prepared],
-               config: TrackingConfig, tracks: _Tracks) -> None:
+def _orb_links(features: list[KeyframeFeatures], config: TrackingConfig,
+               tracks: _Tracks) -> None:
     """Add two-view tracks from ORB matches between keyframes 2..orb_max_gap places apart."""
-    orb = cv2.ORB_create(nfeatures=config.orb_features)
-    features = [orb.detectAndCompute(p.gray, p.valid) for p in prepared]
     matcher = cv2.BFMatcher(cv2.NORM_HAMMING, crossCheck=True)
-    for later in range(len(keyframes)):
+    for later in range(len(features)):
         for earlier in range(max(0, later - config.orb_max_gap), later - 1):
-            (kp_a, desc_a), (kp_b, desc_b) = features[earlier], features[later]
-            if desc_a is None or desc_b is None:
+            first, second = features[earlier], features[later]
+            if first.orb_descriptors is None or second.orb_descriptors is None:
                 continue
-            matches = [m for m in matcher.match(desc_a, desc_b)
+            matches = [m for m in matcher.match(first.orb_descriptors, second.orb_descriptors)
                        if m.distance <= config.orb_max_hamming]
             index = np.array([(m.queryIdx, m.trainIdx) for m in matches], dtype=int)
             index = index.reshape(-1, 2)
-            xy_a = cv2.KeyPoint_convert(kp_a)[index[:, 0]].reshape(-1, 2).astype(np.float64)
-            xy_b = cv2.KeyPoint_convert(kp_b)[index[:, 1]].reshape(-1, 2).astype(np.float64)
+            xy_a, xy_b = first.orb_xy[index[:, 0]], second.orb_xy[index[:, 1]]
             keep = ransac_inliers(xy_a, xy_b, config.ransac_threshold_px)
             ids = tracks.add(earlier, xy_a[keep])
             tracks.add(later, xy_b[keep], ids)
 
 
 def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed: np.ndarray,
-                  tracking: TrackingConfig, solver: SolverConfig) -> BAProblem:
+                  tracking: TrackingConfig, solver: SolverConfig,
+                  cache: FeatureCache | None = None) -> BAProblem:
     """Match the keyframes and return the BA problem over them.
 
     Args:
@@ -164,15 +145,24 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
         fixed: (K,) bool gauge.
         tracking: correspondence settings.
         solver: solver settings (for the depth prior's sigma).
+        cache: per-keyframe features kept from earlier calls, made with ``tracking``; None
+            computes every keyframe's features afresh.
+
+    Raises:
+        InputError: when the cache was made with other tracking settings.
 
     Returns:
         A problem with relative-pose priors between consecutive keyframes from the raw poses.
 
     """
-    prepared = [prepare(keyframe, tracking) for keyframe in keyframes]
+    if cache is not None and cache.config != tracking:
+        raise InputError(f'build_problem: the feature cache was made with {cache.config}, not '
+                         f'{tracking}; create the cache with the same tracking settings')
+    cache = FeatureCache(tracking) if cache is None else cache
+    features = [cache.features(keyframe) for keyframe in keyframes]
     tracks = _Tracks([], [], [])
-    _klt_tracks(prepared, tracking, tracks)
-    _orb_links(keyframes, prepared, tracking, tracks)
+    _klt_tracks(features, tracking, tracks)
+    _orb_links(features, tracking, tracks)
     track, frame, xy = (np.concatenate(tracks.track), np.concatenate(tracks.frame),
                         np.concatenate(tracks.xy))
     order = np.lexsort((frame, track))

@@ -70,10 +70,11 @@ def reprojection(state: PoseState, rays: np.ndarray, host: np.ndarray, obs_track
         with_jacobians: also return the Jacobians (else they are empty arrays).
 
     """
+    # Relative poses host -> observer for every keyframe pair (F^2 << M), then per observation.
+    rot_pairs = state.rotation[None] @ np.swapaxes(state.rotation, -1, -2)[:, None]  # [h, j]
+    t_pairs = state.translation[None] - np.einsum('hjab,hb->hja', rot_pairs, state.translation)
     h = host[obs_track]
-    rot_h, rot_j = state.rotation[h], state.rotation[obs_frame]
-    rot_jh = rot_j @ np.swapaxes(rot_h, -1, -2)
-    t_jh = state.translation[obs_frame] - np.einsum('mij,mj->mi', rot_jh, state.translation[h])
+    rot_jh, t_jh = rot_pairs[h, obs_frame], t_pairs[h, obs_frame]
     rho = state.inv_depth[obs_track]
     point_h = rays[obs_track] / rho[:, None]
     point_j = np.einsum('mij,mj->mi', rot_jh, point_h) + t_jh

@@ -59,6 +59,8 @@ class BAOutput:
         num_observations: observations in the problem.
         num_inliers: observations kept by the outlier gate.
         seconds: wall time of the call (correspondences + solve).
+        cpu_seconds: CPU time of the calling thread during the call (what the call itself cost,
+            whatever else the machine runs).
 
     """
 
@@ -70,3 +72,4 @@ class BAOutput:
     num_observations: int
     num_inliers: int
     seconds: float
+    cpu_seconds: float

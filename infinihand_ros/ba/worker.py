@@ -1,12 +1,15 @@
 """Bundle adjustment off the stream's thread: requests in through a queue, results out.
 
 ``plan_request`` turns a pool selection into a request (initial poses = the current corrected
-poses, gauge = the oldest keyframe refined before); ``run_request`` builds correspondences and
-solves; ``BundleAdjustmentWorker`` runs requests in a background thread, so ``submit`` never
-waits, and hands results to a callback and/or to ``poll``.
+poses, gauge = the oldest keyframe refined before, and the frames the pool still holds);
+``run_request`` builds correspondences and solves, reusing per-keyframe features from a
+``FeatureCache`` and then evicting those of frames no later selection can contain;
+``BundleAdjustmentWorker`` runs requests in a background thread with its own cache, so
+``submit`` never waits, and hands results to a callback and/or to ``poll``.
 """
 
 from collections.abc import Callable
+from collections.abc import Iterable
 from dataclasses import dataclass
 import logging
 import queue
@@ -16,6 +19,7 @@ import time
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.corrections import CorrectionTrack
 from infinihand_ros.ba.correspondences import build_problem
+from infinihand_ros.ba.features import FeatureCache
 from infinihand_ros.ba.keyframe import BAOutput
 from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.solver import BundleAdjuster
@@ -34,12 +38,15 @@ class BARequest:
         keyframes: the selected keyframes, oldest first (at least two).
         T_world_cam: (K, 4, 4) initial poses (current corrected estimates).
         fixed: (K,) bool gauge.
+        retained_ids: frame ids a later selection may contain (the pool's ids after this
+            selection); only their cached features outlive the call.
 
     """
 
     keyframes: tuple[KeyframeInput, ...]
     T_world_cam: np.ndarray
     fixed: np.ndarray
+    retained_ids: tuple[int, ...] = ()
 
     def __post_init__(self) -> None:
         count = len(self.keyframes)
@@ -50,25 +57,38 @@ class BARequest:
                              f'{np.shape(self.fixed)} must match {count} keyframes')
 
 
-def plan_request(keyframes: list[KeyframeInput], corrections: CorrectionTrack) -> BARequest:
+def plan_request(keyframes: list[KeyframeInput], corrections: CorrectionTrack,
+                 retained_ids: Iterable[int] = ()) -> BARequest:
     """Return the request for a selection: corrected initial poses, gauge on the oldest refined.
 
     The fixed keyframe is the oldest one refined by an earlier call (continuity with what was
-    already published); in the first call it is the oldest keyframe.
+    already published); in the first call it is the oldest keyframe. ``retained_ids`` are the
+    pool's frame ids after the selection (``BinaryKeyframePool.frame_ids()``), whose features
+    stay cached for the next calls.
     """
     times = np.array([keyframe.timestamp_ns for keyframe in keyframes])
     raw = np.stack([keyframe.T_world_cam for keyframe in keyframes])
     refined = np.array([corrections.is_refined(t) for t in times])
     fixed = np.zeros(len(keyframes), dtype=bool)
     fixed[int(np.argmax(refined)) if refined.any() else 0] = True
-    return BARequest(tuple(keyframes), corrections.correct(times, raw), fixed)
+    return BARequest(tuple(keyframes), corrections.correct(times, raw), fixed,
+                     tuple(int(frame_id) for frame_id in retained_ids))
 
 
-def run_request(request: BARequest, config: BAConfig) -> BAOutput:
-    """Match the request's keyframes and solve; return the refined poses and statistics."""
-    start = time.perf_counter()
-    problem = build_problem(list(request.keyframes), request.T_world_cam, request.fixed,
-                            config.tracking, config.solver)
+def run_request(request: BARequest, config: BAConfig,
+                cache: FeatureCache | None = None) -> BAOutput:
+    """Match the request's keyframes and solve; return the refined poses and statistics.
+
+    With a ``cache`` (made with ``config.tracking``), features of keyframes seen in earlier
+    calls are reused, and afterwards only those of ``request.retained_ids`` are kept.
+    """
+    start, start_cpu = time.perf_counter(), time.thread_time()
+    try:
+        problem = build_problem(list(request.keyframes), request.T_world_cam, request.fixed,
+                                config.tracking, config.solver, cache)
+    finally:
+        if cache is not None:
+            cache.retain(request.retained_ids)
     result = BundleAdjuster(config.solver).solve(problem)
     return BAOutput(
         frame_ids=np.array([k.frame_id for k in request.keyframes]),
@@ -76,7 +96,7 @@ def run_request(request: BARequest, config: BAConfig) -> BAOutput:
         T_world_cam_raw=np.stack([k.T_world_cam for k in request.keyframes]),
         T_world_cam_refined=result.T_world_cam, num_tracks=len(problem.host),
         num_observations=len(problem.obs_track), num_inliers=int(result.inliers.sum()),
-        seconds=time.perf_counter() - start)
+        seconds=time.perf_counter() - start, cpu_seconds=time.thread_time() - start_cpu)
 
 
 class BundleAdjustmentWorker:
@@ -90,6 +110,7 @@ class BundleAdjustmentWorker:
         self._requests: queue.Queue[BARequest | None] = queue.Queue()
         self._results: queue.Queue[BAOutput] = queue.Queue()
         self.failures = 0
+        self._cache = FeatureCache(config.tracking)
         self._thread = threading.Thread(target=self._run, name='bundle_adjustment', daemon=True)
         self._thread.start()
 
@@ -139,7 +160,7 @@ class BundleAdjustmentWorker:
     def _serve(self, request: BARequest) -> None:
         """Run one request; a failed BA call is logged and counted, the thread keeps going."""
         try:
-            output = run_request(request, self.config)
+            output = run_request(request, self.config, self._cache)
         except (InfiniHandError, ValueError, np.linalg.LinAlgError):
             self.failures += 1
             logger.exception('BA call over frames %s failed; poses stay uncorrected',

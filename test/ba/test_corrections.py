@@ -76,3 +76,50 @@ def test_log_matches_the_general_matrix_logarithm(rng) -> None:
         transform[:3, :3] = turn @ transform[:3, :3]
         np.testing.assert_allclose(similarity_log(transform), np.real(linalg.logm(transform)),
                                    atol=1e-9)
+
+
+def _distance(first: np.ndarray, second: np.ndarray) -> float:
+    """Return the norm of the Sim(3) log between two corrections."""
+    return float(np.linalg.norm(similarity_log(np.linalg.inv(first) @ second)))
+
+
+def test_live_corrections_blend_in_without_jumps() -> None:
+    """A new result is reached over blend_s in steps of at most the blend step, then held."""
+    frame_ns, blend_s = 100_000_000, 0.3
+    track = CorrectionTrack(blend_s)
+    first, second = _pose(4.0, [0.2, 0, 0], 1.1), _pose(-6.0, [0, 0.3, 0.1], 0.9)
+    track.update(np.array([0]), first, np.eye(4)[None])
+    live = [track.live_correction(t) for t in range(frame_ns, 6 * frame_ns, frame_ns)]
+    track.update(np.array([5 * frame_ns]), second, np.eye(4)[None])
+    live += [track.live_correction(t) for t in range(6 * frame_ns, 12 * frame_ns, frame_ns)]
+    np.testing.assert_allclose(live[0], np.eye(4), atol=1e-12)  # blend starts where it was
+    step = frame_ns * 1e-9 / blend_s
+    limit = max(_distance(np.eye(4), first), _distance(first, second)) * step + 1e-9
+    assert max(_distance(a, b) for a, b in zip(live[:-1], live[1:])) <= limit
+    # 0.3 s after the first live frame of each update, the newest correction holds exactly.
+    for index in (3, 4, 8, 9, 10):
+        np.testing.assert_allclose(live[index], second if index >= 5 else first, atol=1e-9)
+    assert _distance(live[6], second) > 0.01, 'the second result must blend in, not jump'
+    np.testing.assert_allclose(track.correct_live(20 * frame_ns, np.eye(4)), second, atol=1e-12)
+
+
+def test_update_during_a_blend_continues_from_the_published_correction() -> None:
+    """A result landing mid-blend starts from the half-blended correction, not from an end."""
+    track = CorrectionTrack(blend_s=1.0)
+    track.update(np.array([0]), _pose(10.0, [0, 0, 0])[None], np.eye(4)[None])
+    track.live_correction(1_000_000)
+    halfway = track.live_correction(501_000_000)
+    np.testing.assert_allclose(halfway, _pose(5.0, [0, 0, 0]), atol=1e-9)
+    track.update(np.array([2]), _pose(-10.0, [0, 0, 0])[None], np.eye(4)[None])
+    np.testing.assert_allclose(track.live_correction(601_000_000), halfway, atol=1e-12)
+    np.testing.assert_allclose(track.live_correction(1_101_000_000), _pose(-2.5, [0, 0, 0]),
+                               atol=1e-9)
+    # The best estimate (initial poses, evaluation) never blends.
+    np.testing.assert_allclose(track.corrections(np.array([601_000_000]))[0],
+                               _pose(-10.0, [0, 0, 0]), atol=1e-12)
+
+
+def test_negative_blend_time_is_refused() -> None:
+    """A negative blend time names the value."""
+    with pytest.raises(ValueError, match='got -0.1'):
+        CorrectionTrack(blend_s=-0.1)

@@ -5,6 +5,7 @@ import threading
 from ba_builders import synth_keyframe
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.corrections import CorrectionTrack
+from infinihand_ros.ba.features import FeatureCache
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.ba.worker import plan_request
 from infinihand_ros.ba.worker import run_request
@@ -69,3 +70,14 @@ def test_submit_after_close_is_refused(keyframes: list) -> None:
     worker.close()
     with pytest.raises(InputError, match='create a new worker'):
         worker.submit(plan_request(keyframes, CorrectionTrack()))
+
+
+def test_run_request_keeps_only_retained_features(keyframes: list) -> None:
+    """After a call the cache holds the frames the pool still has; they are not recomputed."""
+    config = BAConfig()
+    cache = FeatureCache(config.tracking)
+    corrections = CorrectionTrack()
+    run_request(plan_request(keyframes[:3], corrections, retained_ids=[2, 4, 99]), config, cache)
+    assert len(cache) == 2 and cache.computed == 3
+    run_request(plan_request(keyframes[1:4], corrections), config, cache)
+    assert len(cache) == 0 and cache.computed == 4
