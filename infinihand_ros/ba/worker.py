@@ -5,7 +5,10 @@ poses, gauge = the oldest keyframe refined before, and the frames the pool still
 ``run_request`` builds correspondences and solves, reusing per-keyframe features from a
 ``FeatureCache`` and then evicting those of frames no later selection can contain;
 ``BundleAdjustmentWorker`` runs requests in a background thread with its own cache, so
-``submit`` never waits, and hands results to a callback and/or to ``poll``.
+``submit`` never waits, and hands results to a callback and/or to ``poll``. A stream should use
+``submit_selection``: the worker then plans each call when it starts, from its own correction
+track holding every earlier result, so calls queued behind a running one still start from the
+poses it refined and keep its gauge.
 """
 
 from collections.abc import Callable
@@ -55,6 +58,14 @@ class BARequest:
         if np.shape(self.T_world_cam) != (count, 4, 4) or np.shape(self.fixed) != (count,):
             raise InputError(f'BA request: T_world_cam {np.shape(self.T_world_cam)} and fixed '
                              f'{np.shape(self.fixed)} must match {count} keyframes')
+
+
+@dataclass(frozen=True)
+class _Selection:
+    """A pool selection waiting to be planned by the worker."""
+
+    keyframes: tuple[KeyframeInput, ...]
+    retained_ids: tuple[int, ...]
 
 
 def plan_request(keyframes: list[KeyframeInput], corrections: CorrectionTrack,
@@ -107,7 +118,8 @@ class BundleAdjustmentWorker:
         """Start the thread; each result goes to ``callback`` (if any) and to ``poll``."""
         self.config = config
         self._callback = callback
-        self._requests: queue.Queue[BARequest | None] = queue.Queue()
+        self._requests: queue.Queue[BARequest | _Selection | None] = queue.Queue()
+        self._corrections = CorrectionTrack()
         self._results: queue.Queue[BAOutput] = queue.Queue()
         self.failures = 0
         self._cache = FeatureCache(config.tracking)
@@ -115,10 +127,17 @@ class BundleAdjustmentWorker:
         self._thread.start()
 
     def submit(self, request: BARequest) -> None:
-        """Queue a request and return at once."""
+        """Queue a planned request and return at once."""
         if not self._thread.is_alive():
             raise InputError('BA worker: submit() after close(); create a new worker')
         self._requests.put(request)
+
+    def submit_selection(self, keyframes: list[KeyframeInput],
+                         retained_ids: Iterable[int] = ()) -> None:
+        """Queue a pool selection (oldest first); it is planned when its turn comes."""
+        if not self._thread.is_alive():
+            raise InputError('BA worker: submit_selection() after close(); create a new worker')
+        self._requests.put(_Selection(tuple(keyframes), tuple(int(i) for i in retained_ids)))
 
     def poll(self) -> list[BAOutput]:
         """Return the results finished since the last poll, oldest first (never blocks)."""
@@ -157,10 +176,15 @@ class BundleAdjustmentWorker:
             finally:
                 self._requests.task_done()
 
-    def _serve(self, request: BARequest) -> None:
+    def _serve(self, request: 'BARequest | _Selection') -> None:
         """Run one request; a failed BA call is logged and counted, the thread keeps going."""
         try:
+            if isinstance(request, _Selection):
+                request = plan_request(list(request.keyframes), self._corrections,
+                                       request.retained_ids)
             output = run_request(request, self.config, self._cache)
+            self._corrections.update(output.timestamps_ns, output.T_world_cam_refined,
+                                     output.T_world_cam_raw)
         except (InfiniHandError, ValueError, np.linalg.LinAlgError):
             self.failures += 1
             logger.exception('BA call over frames %s failed; poses stay uncorrected',

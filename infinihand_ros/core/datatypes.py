@@ -201,6 +201,8 @@ class FrameResult:
         is_keyframe: whether the frame entered the streaming memory.
         depth: (H, W) float32 depth in metres for keyframes, else None.
         metric_scale: factor applied to the model's camera translations (1.0 when unknown).
+        raw_camera_pose: the estimator's pose before bundle-adjustment corrections, when BA
+            corrected ``camera_pose``; None otherwise.
 
     """
 
@@ -212,6 +214,7 @@ class FrameResult:
     is_keyframe: bool = False
     depth: np.ndarray | None = None
     metric_scale: float = 1.0
+    raw_camera_pose: CameraPose | None = None
 
     def __post_init__(self) -> None:
         sides = [hand.side for hand in self.hands]

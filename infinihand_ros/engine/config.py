@@ -32,6 +32,8 @@ class EngineConfig:
             ReLU allows 0, which no camera has).
         metric_scale: running metric-scale estimate from the hands.
         checkpoint: our checkpoint directory (its configs win); None: seeded untrained weights.
+        bundle_adjustment: run sparse BA in a background thread and correct the poses.
+        ba_config: BA settings file; None: the package's ``config/ba.yaml``.
 
     """
 
@@ -46,6 +48,8 @@ class EngineConfig:
     fov_range_deg: tuple[float, float] = (5.0, 170.0)
     metric_scale: MetricScaleConfig = field(default_factory=MetricScaleConfig)
     checkpoint: str | None = None
+    bundle_adjustment: bool = False
+    ba_config: str | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:

@@ -13,8 +13,10 @@ from collections import deque
 from concurrent.futures import Future
 from concurrent.futures import ThreadPoolExecutor
 
+from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.engine.ba_stage import BundleAdjustmentStage
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.decode import decode_block
@@ -57,6 +59,14 @@ class StreamingEngine:
         self._pending: list[PreparedFrame] = []
         self._decoding: deque[Future] = deque()
         self._frames_pushed = 0
+        self._ba = self._new_ba_stage()
+        self._source_images: dict[int, np.ndarray] = {}  # frames in flight, for BA only
+
+    def _new_ba_stage(self) -> BundleAdjustmentStage | None:
+        """Return a fresh BA stage when bundle adjustment is on."""
+        if not self.config.bundle_adjustment:
+            return None
+        return BundleAdjustmentStage(load_ba_config(self.config.ba_config))
 
     @property
     def metric_scale(self) -> ScaleEstimate:
@@ -78,6 +88,8 @@ class StreamingEngine:
 
         """
         frame = self._prepare(image, int(timestamp_ns), intrinsics)
+        if self._ba is not None:
+            self._source_images[frame.index] = image
         self._pending.append(frame)
         self._frames_pushed += 1
         if len(self._pending) >= self._block_size():
@@ -94,14 +106,20 @@ class StreamingEngine:
         """Start a new sequence: drop held-back frames, memories, the scale and the counters."""
         self._collect(wait=True)
         self._pending.clear()
+        self._source_images.clear()
         self._stream.reset()
         self._scale.reset()
         self._frames_pushed = 0
+        if self._ba is not None:
+            self._ba.close()
+            self._ba = self._new_ba_stage()
 
     def close(self) -> None:
-        """Stop the decoding worker (windowed mode)."""
+        """Stop the decoding worker (windowed mode) and the BA worker."""
         if self._decoder is not None:
             self._decoder.shutdown(wait=True)
+        if self._ba is not None:
+            self._ba.close()
 
     def __enter__(self) -> 'StreamingEngine':
         """Return the engine."""
@@ -149,4 +167,7 @@ class StreamingEngine:
         results: list[FrameResult] = []
         while self._decoding and (wait or self._decoding[0].done()):
             results.extend(self._decoding.popleft().result())
+        if self._ba is not None:
+            results = [self._ba.apply(result, self._source_images.pop(result.frame_index))
+                       for result in results]
         return results

@@ -105,3 +105,14 @@ def test_predicted_field_of_view_without_intrinsics(model, frames: list) -> None
         # Untrained FoVs are arbitrary, but clamped to the configured range.
         fov_h, fov_w = np.degrees(intrinsics.fov())
         assert 4.9 < fov_h < 170.1 and 4.9 < fov_w < 170.1
+
+
+def test_bundle_adjustment_keeps_the_raw_poses(model, frames: list) -> None:
+    plain = _run(StreamingEngine(CONFIG, model), frames[:4])
+    with StreamingEngine(replace(CONFIG, bundle_adjustment=True), model) as engine:
+        adjusted = _run(engine, frames[:4])
+    for a, b in zip(plain, adjusted):
+        assert a.raw_camera_pose is None
+        # No BA call yet (the pool has not triggered): the correction is the identity.
+        np.testing.assert_allclose(b.raw_camera_pose.matrix(), a.camera_pose.matrix(), atol=1e-6)
+        np.testing.assert_allclose(b.camera_pose.matrix(), a.camera_pose.matrix(), atol=1e-6)
