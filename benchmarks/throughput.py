@@ -1,11 +1,13 @@
 """Engine throughput, latency and memory on a synthetic stream.
 
-    python benchmarks/throughput.py [--config config/engine.yaml] [--frames 600] [--json]
+    python benchmarks/throughput.py [--config config/engine.yaml] [--frames 600] [--ba] [--json]
 
 Renders a short synthetic sequence (518x378, both hands) once and replays it as a stream of
 ``--frames`` frames with increasing stamps. Runs the engine in per-frame mode (frames/s, push
 latency p50/p95 after the anchors, resident memory after 300 frames and at the end) and in
-windowed mode (frames/s). Prints one JSON line with ``--json``. Issue targets for the tiny config
+windowed mode (frames/s); with ``--ba`` also per-frame mode with bundle adjustment in the
+background (latency beside the BA-off latency, BA calls done). Prints one JSON line with
+``--json``. Issue targets for the tiny config
 on 2 cores: >= 10 frames/s per frame, p95 <= 150 ms, RSS at the end <= RSS at 300 frames + 10 %.
 """
 
@@ -77,6 +79,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--config', type=Path, default=None, help='engine YAML')
     parser.add_argument('--frames', type=int, default=600)
+    parser.add_argument('--ba', action='store_true', help='also run with bundle adjustment on')
     parser.add_argument('--json', action='store_true', help='print one JSON line')
     args = parser.parse_args()
     config = load_engine_config(args.config)
@@ -86,6 +89,13 @@ def main() -> None:
         figures = _per_frame(engine, frames, args.frames)
     with StreamingEngine(replace(config, mode='windowed'), model) as engine:
         figures['fps_windowed'] = _windowed(engine, frames, args.frames)
+    if args.ba:
+        with StreamingEngine(replace(config, mode='per_frame', bundle_adjustment=True),
+                             model) as engine:
+            with_ba = _per_frame(engine, frames, args.frames)
+            figures['ba_calls_done'] = engine.ba_calls_done
+        figures['latency_p50_ms_ba'] = with_ba['latency_p50_ms']
+        figures['latency_p95_ms_ba'] = with_ba['latency_p95_ms']
     rounded = {key: (None if value is None else round(value, 1)) for key, value in figures.items()}
     if args.json:
         print(json.dumps(rounded))

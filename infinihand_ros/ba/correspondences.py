@@ -149,7 +149,8 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
             computes every keyframe's features afresh.
 
     Raises:
-        InputError: when the cache was made with other tracking settings.
+        InputError: when the cache was made with other tracking settings, or no feature
+            track links the keyframes.
 
     Returns:
         A problem with relative-pose priors between consecutive keyframes from the raw poses.
@@ -163,6 +164,10 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
     tracks = _Tracks([], [], [])
     _klt_tracks(features, tracking, tracks)
     _orb_links(features, tracking, tracks)
+    if not tracks.track or sum(len(t) for t in tracks.track) == 0:
+        raise InputError(f'BA: no feature tracks between keyframes '
+                         f'{[k.frame_id for k in keyframes]} (textureless images, or hand '
+                         'masks covering them); their poses stay uncorrected')
     track, frame, xy = (np.concatenate(tracks.track), np.concatenate(tracks.frame),
                         np.concatenate(tracks.xy))
     order = np.lexsort((frame, track))

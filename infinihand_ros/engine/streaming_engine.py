@@ -69,6 +69,11 @@ class StreamingEngine:
         return BundleAdjustmentStage(load_ba_config(self.config.ba_config))
 
     @property
+    def ba_calls_done(self) -> int:
+        """Return the number of finished bundle-adjustment calls folded in (0 when BA is off)."""
+        return 0 if self._ba is None else self._ba.calls_done
+
+    @property
     def metric_scale(self) -> ScaleEstimate:
         """Return the current metric-scale estimate (metres per model unit)."""
         return self._scale.estimate()

@@ -6,9 +6,11 @@ from ba_builders import synth_keyframe
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.corrections import CorrectionTrack
 from infinihand_ros.ba.features import FeatureCache
+from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.ba.worker import plan_request
 from infinihand_ros.ba.worker import run_request
+from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
@@ -81,3 +83,17 @@ def test_run_request_keeps_only_retained_features(keyframes: list) -> None:
     assert len(cache) == 2 and cache.computed == 3
     run_request(plan_request(keyframes[1:4], corrections), config, cache)
     assert len(cache) == 0 and cache.computed == 4
+
+
+def test_failed_calls_are_counted_and_the_worker_lives_on(
+        caplog: pytest.LogCaptureFixture) -> None:
+    """A selection without any trackable pixel fails cleanly; the next call still runs."""
+    intrinsics = Intrinsics(50.0, 50.0, 32.0, 24.0, 64, 48)
+    blank = [KeyframeInput(i, i, np.zeros((48, 64, 3), np.uint8), np.ones((48, 64), np.float32),
+                           np.eye(4), intrinsics, np.zeros((48, 64), bool)) for i in range(3)]
+    worker = BundleAdjustmentWorker(BAConfig())
+    worker.submit_selection(blank)
+    worker.submit_selection(blank)
+    worker.close()
+    assert worker.failures == 2 and worker.poll() == []
+    assert 'no feature tracks between keyframes' in caplog.text
