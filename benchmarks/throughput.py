@@ -5,9 +5,11 @@
 Renders a short synthetic sequence (518x378, both hands) once and replays it as a stream of
 ``--frames`` frames with increasing stamps. Runs the engine in per-frame mode (frames/s, push
 latency p50/p95 after the anchors, resident memory after 300 frames and at the end) and in
-windowed mode (frames/s); with ``--ba`` also per-frame mode with bundle adjustment in the
-background (latency beside the BA-off latency, BA calls done). Prints one JSON line with
-``--json``. Issue targets for the tiny config
+windowed mode (frames/s); with ``--ba`` also per-frame mode with bundle adjustment off and on
+(push latencies side by side, BA calls done). The untrained model's hand masks cover whole
+frames, which leaves BA nothing to track, so both BA runs ignore hands (presence threshold
+0.999): BA then does its full work (tracking and solving over the model's depth and poses)
+while the stream runs. Prints one JSON line with ``--json``. Issue targets for the tiny config
 on 2 cores: >= 10 frames/s per frame, p95 <= 150 ms, RSS at the end <= RSS at 300 frames + 10 %.
 """
 
@@ -28,6 +30,8 @@ import numpy as np
 DISTINCT_FRAMES = 40
 RSS_CHECKPOINT = 300
 FRAME_PERIOD_NS = 100_000_000
+#: Hands ignored in the BA comparison (see the module docstring).
+BA_PRESENCE_THRESHOLD = 0.999
 
 
 def _rss_mb() -> float:
@@ -90,12 +94,15 @@ def main() -> None:
     with StreamingEngine(replace(config, mode='windowed'), model) as engine:
         figures['fps_windowed'] = _windowed(engine, frames, args.frames)
     if args.ba:
-        with StreamingEngine(replace(config, mode='per_frame', bundle_adjustment=True),
-                             model) as engine:
-            with_ba = _per_frame(engine, frames, args.frames)
-            figures['ba_calls_done'] = engine.ba_calls_done
-        figures['latency_p50_ms_ba'] = with_ba['latency_p50_ms']
-        figures['latency_p95_ms_ba'] = with_ba['latency_p95_ms']
+        for name, enabled in (('ba_off', False), ('ba_on', True)):
+            ba_config = replace(config, mode='per_frame', bundle_adjustment=enabled,
+                                presence_threshold=BA_PRESENCE_THRESHOLD)
+            with StreamingEngine(ba_config, model) as engine:
+                run = _per_frame(engine, frames, args.frames)
+                if enabled:
+                    figures['ba_calls_done'] = engine.ba_calls_done
+            figures[f'latency_p50_ms_{name}'] = run['latency_p50_ms']
+            figures[f'latency_p95_ms_{name}'] = run['latency_p95_ms']
     rounded = {key: (None if value is None else round(value, 1)) for key, value in figures.items()}
     if args.json:
         print(json.dumps(rounded))

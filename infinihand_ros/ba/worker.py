@@ -11,10 +11,12 @@ track holding every earlier result, so calls queued behind a running one still s
 poses it refined and keep its gauge.
 """
 
+from collections import deque
 from collections.abc import Callable
 from collections.abc import Iterable
 from dataclasses import dataclass
 import logging
+import os
 import queue
 import threading
 import time
@@ -28,8 +30,15 @@ from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.solver import BundleAdjuster
 from infinihand_ros.core.errors import InputError
 import numpy as np
+import torch
 
 logger = logging.getLogger(__name__)
+
+#: Pool selections allowed to wait while BA runs; older ones are dropped.
+MAX_QUEUED_SELECTIONS = 2
+#: Niceness of the worker thread: BA only gets CPU time the stream leaves (paper: BA runs in
+#: the background and must not slow the per-frame predictions).
+WORKER_NICENESS = 19
 
 
 @dataclass(frozen=True)
@@ -110,33 +119,53 @@ def run_request(request: BARequest, config: BAConfig,
 
 
 class BundleAdjustmentWorker:
-    """Background thread that runs BA requests in order."""
+    """Background thread that runs BA requests in order, never more than a few behind.
+
+    The thread runs at a low priority with one torch thread, so BA takes the CPU time the
+    stream leaves. When it falls behind, the oldest queued pool selection is dropped (counted in
+    ``dropped``): a stream always gets its newest selections refined and memory stays bounded.
+    """
 
     def __init__(self, config: BAConfig,
                  callback: Callable[[BAOutput], None] | None = None) -> None:
         """Start the thread; each result goes to ``callback`` (if any) and to ``poll``."""
         self.config = config
         self._callback = callback
-        self._requests: queue.Queue[BARequest | _Selection | None] = queue.Queue()
+        self._queued: deque[BARequest | _Selection] = deque()
+        self._wake = threading.Condition()
+        self._closing = False
+        self._busy = False
         self._corrections = CorrectionTrack()
         self._results: queue.Queue[BAOutput] = queue.Queue()
         self.failures = 0
+        self.dropped = 0
         self._cache = FeatureCache(config.tracking)
         self._thread = threading.Thread(target=self._run, name='bundle_adjustment', daemon=True)
         self._thread.start()
 
     def submit(self, request: BARequest) -> None:
         """Queue a planned request and return at once."""
-        if not self._thread.is_alive():
-            raise InputError('BA worker: submit() after close(); create a new worker')
-        self._requests.put(request)
+        self._enqueue(request)
 
     def submit_selection(self, keyframes: list[KeyframeInput],
                          retained_ids: Iterable[int] = ()) -> None:
         """Queue a pool selection (oldest first); it is planned when its turn comes."""
-        if not self._thread.is_alive():
-            raise InputError('BA worker: submit_selection() after close(); create a new worker')
-        self._requests.put(_Selection(tuple(keyframes), tuple(int(i) for i in retained_ids)))
+        self._enqueue(_Selection(tuple(keyframes), tuple(int(i) for i in retained_ids)))
+
+    def _enqueue(self, item: 'BARequest | _Selection') -> None:
+        """Append ``item``, dropping the oldest queued selections beyond the limit."""
+        with self._wake:
+            if self._closing or not self._thread.is_alive():
+                raise InputError('BA worker: submit after close(); create a new worker')
+            if isinstance(item, _Selection):
+                selections = [queued for queued in self._queued if isinstance(queued, _Selection)]
+                for stale in selections[:max(0, len(selections) - MAX_QUEUED_SELECTIONS + 1)]:
+                    self._queued.remove(stale)
+                    self.dropped += 1
+                    logger.info('BA worker behind: dropped the selection of frames %s',
+                                [k.frame_id for k in stale.keyframes])
+            self._queued.append(item)
+            self._wake.notify()
 
     def poll(self) -> list[BAOutput]:
         """Return the results finished since the last poll, oldest first (never blocks)."""
@@ -148,12 +177,15 @@ class BundleAdjustmentWorker:
                 return out
 
     def pending(self) -> int:
-        """Return the number of requests queued but not finished (approximate)."""
-        return self._requests.unfinished_tasks
+        """Return the number of requests queued or running."""
+        with self._wake:
+            return len(self._queued) + int(self._busy)
 
     def close(self, timeout_s: float | None = None) -> None:
         """Finish the queued requests, then stop the thread."""
-        self._requests.put(None)
+        with self._wake:
+            self._closing = True
+            self._wake.notify()
         self._thread.join(timeout_s)
 
     def __enter__(self) -> 'BundleAdjustmentWorker':
@@ -165,15 +197,25 @@ class BundleAdjustmentWorker:
         self.close()
 
     def _run(self) -> None:
-        """Serve requests until the stop sentinel."""
+        """Serve requests until closed and drained, at a low CPU priority."""
+        try:  # Linux threads are tasks: only this thread yields the CPU to the stream.
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), WORKER_NICENESS)
+        except (AttributeError, OSError) as exc:
+            logger.info('BA worker: could not lower its priority (%s)', exc)
+        torch.set_num_threads(1)  # per calling thread: the stream keeps its own thread count
         while True:
-            request = self._requests.get()
-            try:
-                if request is None:
+            with self._wake:
+                while not self._queued and not self._closing:
+                    self._wake.wait()
+                if not self._queued:
                     return
-                self._serve(request)
+                item = self._queued.popleft()
+                self._busy = True
+            try:
+                self._serve(item)
             finally:
-                self._requests.task_done()
+                with self._wake:
+                    self._busy = False
 
     def _serve(self, request: 'BARequest | _Selection') -> None:
         """Run one request; a failed BA call is logged and counted, the thread keeps going."""

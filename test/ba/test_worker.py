@@ -51,6 +51,28 @@ def test_submit_never_waits_and_results_arrive(keyframes: list) -> None:
     assert worker.poll() == []
 
 
+def test_a_busy_worker_drops_the_oldest_queued_selections(keyframes: list) -> None:
+    """Selections queued behind a busy call beyond the limit are dropped, oldest first."""
+    started, release = threading.Event(), threading.Event()
+    received = []
+
+    def callback(output) -> None:
+        received.append(output.frame_ids.tolist())
+        started.set()
+        assert release.wait(timeout=60.0)
+
+    with BundleAdjustmentWorker(BAConfig(), callback) as worker:
+        worker.submit_selection(keyframes[:3])
+        assert started.wait(timeout=60.0)
+        for first in (1, 2):  # queued behind the running call; the first one will be dropped
+            worker.submit_selection(keyframes[first:first + 3])
+        worker.submit_selection(keyframes[2:])
+        assert worker.dropped == 1 and worker.pending() == 3
+        release.set()
+    assert received == [[0, 2, 4], [4, 6, 8], [4, 6, 8]]
+    assert worker.failures == 0
+
+
 def test_plan_request_fixes_the_oldest_refined_keyframe(keyframes: list) -> None:
     """First call: the oldest is fixed; later: the oldest keyframe refined before."""
     corrections = CorrectionTrack()

@@ -1,6 +1,7 @@
 """BA beside the stream: keyframes reach the pool, BA runs in the background, corrections land."""
 
 from dataclasses import replace
+import time
 
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.config import PoolConfig
@@ -45,6 +46,8 @@ def test_background_ba_corrects_drifted_poses(rng: np.random.Generator) -> None:
                                                      if h.visible),
                              is_keyframe=True, depth=depth)
         outputs.append(stage.apply(result, frame.rgb))
+        while stage.worker.pending():  # a stream slower than BA: no selection is dropped
+            time.sleep(0.01)
     stage.close()  # let the queued calls finish; the next frames fold them in and blend
     # the newest correction in over corrections.blend_s (0.3 s), so look 1 s later.
     for delay_ns in (100_000_000, 1_000_000_000):
@@ -53,6 +56,7 @@ def test_background_ba_corrects_drifted_poses(rng: np.random.Generator) -> None:
                        camera_pose=CameraPose.from_matrix(raw[-1]), raw_camera_pose=None)
         final = stage.apply(late, frames[-1].rgb)
     assert stage.calls_submitted >= 3 and stage.calls_done == stage.calls_submitted
+    assert stage.worker.dropped == 0 and stage.worker.failures == 0
     correction = stage.corrections.corrections(np.array([late.timestamp_ns]))[0]
     assert not np.allclose(correction, np.eye(4))
     np.testing.assert_allclose(final.camera_pose.matrix(), correction @ raw[-1], atol=1e-9)
