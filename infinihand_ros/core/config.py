@@ -52,6 +52,13 @@ def _check_value(value: Any, hint: Any, where: str) -> Any:
     raise ConfigError(f'{where}: unsupported field type {hint}')
 
 
+def require_positive(owner: str, **values: float) -> None:
+    """Raise ConfigError naming the first of ``values`` that is not positive."""
+    for name, value in values.items():
+        if value <= 0:
+            raise ConfigError(f'{owner}.{name}: must be positive, got {value!r}')
+
+
 def config_from_dict(cls: type[ConfigT], data: Any, where: str) -> ConfigT:
     """Build the dataclass ``cls`` from a mapping, checking keys and types.
 

@@ -11,17 +11,11 @@ from pathlib import Path
 
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import load_config
+from infinihand_ros.core.config import require_positive
 
 PATCH_EMBED_KINDS = ('conv', 'dinov2')
 GLOBAL_ROPE_KINDS = ('video3d', 'spatial2d')
 GEOMETRY_SECTION = 'geometry'
-
-
-def _require_positive(owner: str, **values: float) -> None:
-    """Raise ValueError naming each value of ``values`` that is not positive."""
-    for name, value in values.items():
-        if value <= 0:
-            raise ValueError(f'{owner}.{name} must be positive, got {value}')
 
 
 @dataclass(frozen=True)
@@ -46,8 +40,8 @@ class PatchEmbedConfig:
             raise ValueError(f'patch_embed.kind must be one of {PATCH_EMBED_KINDS}, '
                              f'got {self.kind!r}')
         if self.kind == 'dinov2':
-            _require_positive('patch_embed', depth=self.depth, num_heads=self.num_heads,
-                              pretrain_image_size=self.pretrain_image_size)
+            require_positive('patch_embed', depth=self.depth, num_heads=self.num_heads,
+                             pretrain_image_size=self.pretrain_image_size)
 
 
 @dataclass(frozen=True)
@@ -77,9 +71,9 @@ class AggregatorConfig:
     patch_embed: PatchEmbedConfig = field(default_factory=PatchEmbedConfig)
 
     def __post_init__(self) -> None:
-        _require_positive('aggregator', image_height=self.image_height,
-                          image_width=self.image_width, patch_size=self.patch_size,
-                          embed_dim=self.embed_dim, depth=self.depth, num_heads=self.num_heads)
+        require_positive('aggregator', image_height=self.image_height,
+                         image_width=self.image_width, patch_size=self.patch_size,
+                         embed_dim=self.embed_dim, depth=self.depth, num_heads=self.num_heads)
         if self.image_height % self.patch_size or self.image_width % self.patch_size:
             raise ValueError(f'aggregator image size {self.image_height}x{self.image_width} '
                              f'must be a multiple of patch_size {self.patch_size}')
@@ -127,8 +121,8 @@ class CameraHeadConfig:
     layer_scale_init: float = 0.01
 
     def __post_init__(self) -> None:
-        _require_positive('camera_head', trunk_depth=self.trunk_depth, num_heads=self.num_heads,
-                          num_iterations=self.num_iterations)
+        require_positive('camera_head', trunk_depth=self.trunk_depth, num_heads=self.num_heads,
+                         num_iterations=self.num_iterations)
 
 
 @dataclass(frozen=True)
@@ -141,8 +135,8 @@ class DptConfig:
     pos_embed: bool = True
 
     def __post_init__(self) -> None:
-        _require_positive('dpt', features=self.features, head_features=self.head_features,
-                          min_out_channels=min(self.out_channels))
+        require_positive('dpt', features=self.features, head_features=self.head_features,
+                         min_out_channels=min(self.out_channels))
 
 
 @dataclass(frozen=True)
@@ -159,8 +153,8 @@ class MemoryConfig:
     max_trajectory_frames: int = 1024
 
     def __post_init__(self) -> None:
-        _require_positive('memory', anchor_frames=self.anchor_frames,
-                          max_trajectory_frames=self.max_trajectory_frames)
+        require_positive('memory', anchor_frames=self.anchor_frames,
+                         max_trajectory_frames=self.max_trajectory_frames)
         if self.window < 0:
             raise ValueError(f'memory.window must be >= 0, got {self.window}')
 
@@ -176,7 +170,7 @@ class MaskConfig:
     def __post_init__(self) -> None:
         if not 0.0 < self.threshold < 1.0:
             raise ValueError(f'masks.threshold must be in (0, 1), got {self.threshold}')
-        _require_positive('masks', min_pixels=self.min_pixels, box_expand=self.box_expand)
+        require_positive('masks', min_pixels=self.min_pixels, box_expand=self.box_expand)
 
 
 @dataclass(frozen=True)

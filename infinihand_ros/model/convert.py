@@ -63,30 +63,41 @@ class Conversion:
     added: tuple[str, ...]
 
 
-def read_torch_checkpoint(path: str | Path) -> dict[str, torch.Tensor]:
-    """Return the tensors of a ``.pt`` checkpoint, unwrapped and without ``module.`` prefixes.
+def read_torch_checkpoint(path: str | Path, wrapper_key: str = WRAPPER_KEY,
+                          what: str = 'checkpoint', hint: str = 'pass the model state dict'
+                          ) -> dict[str, torch.Tensor]:
+    """Return the tensors of a pickle checkpoint, unwrapped and without ``module.`` prefixes.
+
+    Loaded only with ``torch.load(weights_only=True)``, i.e. tensors and plain containers.
+
+    Args:
+        path: the ``.pt`` / ``.ckpt`` file the user named.
+        wrapper_key: the state dict may sit under this key (``"model"``; Lightning:
+            ``"state_dict"``).
+        what: what the file is, for error messages.
+        hint: what to do when the file holds something else.
 
     Raises:
         CheckpointError: when the file is missing, not loadable with ``weights_only=True``, or
-            holds anything but a (possibly ``"model"``-wrapped) mapping of tensors.
+            holds anything but a (possibly wrapped) mapping of tensors.
 
     """
     path = Path(path)
     if not path.is_file():
-        raise CheckpointError(f'{path}: no such checkpoint file')
+        raise CheckpointError(f'{path}: no such {what} file')
     try:
         content = torch.load(path, map_location='cpu', weights_only=True)
     except (OSError, RuntimeError, pickle.UnpicklingError, EOFError) as exc:
         raise CheckpointError(f'{path}: cannot be read as a weights-only torch checkpoint '
-                              f'({exc})') from exc
-    if isinstance(content, Mapping) and isinstance(content.get(WRAPPER_KEY), Mapping):
-        content = content[WRAPPER_KEY]
+                              f'({exc}); {hint}') from exc
+    if isinstance(content, Mapping) and isinstance(content.get(wrapper_key), Mapping):
+        content = content[wrapper_key]
     if not isinstance(content, Mapping):
-        raise CheckpointError(f'{path}: expected a state dict, got {type(content).__name__}')
+        raise CheckpointError(f'{path}: expected a state dict, got {type(content).__name__}; '
+                              f'{hint}')
     bad = [key for key, value in content.items() if not isinstance(value, torch.Tensor)]
     if bad:
-        raise CheckpointError(f'{path}: entries that are not tensors: {bad[:5]}; pass the '
-                              'model state dict')
+        raise CheckpointError(f'{path}: entries that are not tensors: {bad[:5]}; {hint}')
     return {key.removeprefix(PARALLEL_PREFIX): value for key, value in content.items()}
 
 

@@ -1,4 +1,4 @@
-"""Builders shared by the model tests: a very small geometry configuration and model."""
+"""Builders shared by the model tests: very small geometry configurations and models."""
 
 from collections.abc import Callable
 from dataclasses import replace
@@ -9,6 +9,10 @@ from infinihand_ros.model.config import DptConfig
 from infinihand_ros.model.config import GeometryConfig
 from infinihand_ros.model.config import MemoryConfig
 from infinihand_ros.model.geometry_model import GeometryModel
+from infinihand_ros.model.hand.config import HandBranchConfig
+from infinihand_ros.model.hand.config import load_hand_branch_config
+from infinihand_ros.model.infinihand_model import build_infinihand_model
+from infinihand_ros.model.infinihand_model import InfiniHandModel
 import pytest
 import torch
 
@@ -46,3 +50,21 @@ def micro_model() -> GeometryModel:
 def make_micro_config() -> Callable[..., GeometryConfig]:
     """Return the ``micro_config`` builder (embed_dim 64 or 96, memory overrides)."""
     return micro_config
+
+
+@pytest.fixture(scope='session')
+def geometry_config() -> GeometryConfig:
+    """Return the micro geometry config of the whole-model tests (anchor 1, window 2)."""
+    return micro_config(anchor_frames=1, window=2)
+
+
+@pytest.fixture(scope='session')
+def hand_config() -> HandBranchConfig:
+    """Return the shipped tiny hand-branch config (4-layer 192-d appearance ViT)."""
+    return load_hand_branch_config('tiny')
+
+
+@pytest.fixture
+def model(geometry_config: GeometryConfig, hand_config: HandBranchConfig) -> InfiniHandModel:
+    """Return a micro InfiniHand model seeded with 0, in eval mode."""
+    return build_infinihand_model(geometry_config, hand_config, seed=0).eval()

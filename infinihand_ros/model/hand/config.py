@@ -13,19 +13,13 @@ from typing import Final
 
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import load_config
+from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
 
 #: Top-level key of the hand-branch section in the YAML files.
 CONFIG_SECTION: Final = 'hand_branch'
 #: Names of the shipped configurations (``config/hand_branch_<name>.yaml``).
 CONFIG_NAMES: Final = ('paper', 'tiny')
-
-
-def _require_positive(owner: str, **values: float) -> None:
-    """Raise ConfigError naming the first value that is not > 0."""
-    for name, value in values.items():
-        if value <= 0:
-            raise ConfigError(f'{owner}.{name}: must be positive, got {value!r}')
 
 
 @dataclass(frozen=True)
@@ -60,10 +54,10 @@ class AppearanceViTConfig:
     def __post_init__(self) -> None:
         """Reject sizes that do not tile into patches or heads (ConfigError)."""
         owner = f'{CONFIG_SECTION}.appearance'
-        _require_positive(owner, image_height=self.image_height, image_width=self.image_width,
-                          patch_size=self.patch_size, embed_dim=self.embed_dim, depth=self.depth,
-                          num_heads=self.num_heads, mlp_ratio=self.mlp_ratio,
-                          norm_eps=self.norm_eps)
+        require_positive(owner, image_height=self.image_height, image_width=self.image_width,
+                         patch_size=self.patch_size, embed_dim=self.embed_dim, depth=self.depth,
+                         num_heads=self.num_heads, mlp_ratio=self.mlp_ratio,
+                         norm_eps=self.norm_eps)
         if self.image_height % self.patch_size or self.image_width % self.patch_size:
             raise ConfigError(
                 f'{owner}: image {self.image_height}x{self.image_width} is not a multiple of '
@@ -113,12 +107,12 @@ class HandBranchConfig:
 
     def __post_init__(self) -> None:
         """Reject non-positive sizes and a ViT input larger than the crop (ConfigError)."""
-        _require_positive(CONFIG_SECTION, crop_size=self.crop_size,
-                          box_expansion=self.box_expansion,
-                          default_crop_extent_m=self.default_crop_extent_m,
-                          min_cam_scale=self.min_cam_scale, adapter_dim=self.adapter_dim,
-                          fusion_dim=self.fusion_dim, readout_channels=self.readout_channels,
-                          head_hidden_dim=self.head_hidden_dim)
+        require_positive(CONFIG_SECTION, crop_size=self.crop_size,
+                         box_expansion=self.box_expansion,
+                         default_crop_extent_m=self.default_crop_extent_m,
+                         min_cam_scale=self.min_cam_scale, adapter_dim=self.adapter_dim,
+                         fusion_dim=self.fusion_dim, readout_channels=self.readout_channels,
+                         head_hidden_dim=self.head_hidden_dim)
         vit = self.appearance
         margins = (self.crop_size - vit.image_height, self.crop_size - vit.image_width)
         if min(margins) < 0 or margins[0] % 2 or margins[1] % 2:

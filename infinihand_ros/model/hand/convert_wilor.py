@@ -16,7 +16,6 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 import logging
 from pathlib import Path
-import pickle
 import sys
 from typing import Final
 
@@ -26,6 +25,7 @@ from infinihand_ros.model.checkpoint import compare_state_dict
 from infinihand_ros.model.checkpoint import load_state_dict_checked
 from infinihand_ros.model.checkpoint import LoadReport
 from infinihand_ros.model.config import GeometryConfig
+from infinihand_ros.model.convert import read_torch_checkpoint
 from infinihand_ros.model.hand.appearance_vit import AppearanceViT
 from infinihand_ros.model.hand.config import AppearanceViTConfig
 from infinihand_ros.model.hand.config import HandBranchConfig
@@ -42,7 +42,6 @@ logger = logging.getLogger(__name__)
 BACKBONE: Final = 'backbone'
 #: Key of the model weights in a Lightning checkpoint, and DataParallel's key prefix.
 LIGHTNING_STATE_KEY: Final = 'state_dict'
-PARALLEL_PREFIX: Final = 'module.'
 #: Groups of WiLoR keys that are not used, by key prefix; anything else is ``other``.
 UNUSED_GROUPS: Final = (('refine_net', 'refine_net.'), ('mano', 'mano.'),
                         ('discriminator', 'discriminator.'))
@@ -87,24 +86,7 @@ def read_wilor_checkpoint(path: str | Path) -> dict[str, torch.Tensor]:
             or holds no mapping of tensors.
 
     """
-    path = Path(path)
-    if not path.is_file():
-        raise CheckpointError(f'{path}: no such WiLoR checkpoint file')
-    try:
-        content = torch.load(path, map_location='cpu', weights_only=True)
-    except (OSError, RuntimeError, pickle.UnpicklingError, EOFError) as exc:
-        raise CheckpointError(f'{path}: cannot be read as a weights-only torch checkpoint '
-                              f'({exc}); {_EXTRACT_HINT}') from exc
-    if isinstance(content, Mapping) and isinstance(content.get(LIGHTNING_STATE_KEY), Mapping):
-        content = content[LIGHTNING_STATE_KEY]
-    if not isinstance(content, Mapping):
-        raise CheckpointError(f'{path}: expected a WiLoR state dict, got '
-                              f'{type(content).__name__}')
-    bad = [key for key, value in content.items() if not isinstance(value, torch.Tensor)]
-    if bad:
-        raise CheckpointError(f'{path}: entries that are not tensors: {bad[:5]}; pass a WiLoR '
-                              'Lightning checkpoint or its state dict')
-    return {key.removeprefix(PARALLEL_PREFIX): value for key, value in content.items()}
+    return read_torch_checkpoint(path, LIGHTNING_STATE_KEY, 'WiLoR checkpoint', _EXTRACT_HINT)
 
 
 def group_unused_keys(state_dict: Mapping[str, torch.Tensor]) -> dict[str, tuple[str, ...]]:
