@@ -16,6 +16,7 @@ def test_demo_regenerates_the_sample_bag(tmp_path: Path, capsys: pytest.CaptureF
     report = capsys.readouterr().out
     assert 'ground truth identical to the bag: True' in report
     assert '150 x infinihand_msgs/msg/HandFrame' in report
+    assert '150 results for 150 frames' in report
     assert not (out / 'stale.txt').exists()
     for name in (cli.FRAMES_PREVIEW, cli.TRAJECTORY_PREVIEW, cli.RESOLVED_CONFIG):
         assert (out / name).stat().st_size > 0
