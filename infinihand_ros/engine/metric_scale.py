@@ -8,6 +8,7 @@ ratios, with a MAD-based standard error as its uncertainty.
 
 from collections import deque
 from dataclasses import dataclass
+import threading
 from typing import Final
 
 from infinihand_ros.core.errors import ConfigError
@@ -55,16 +56,18 @@ class ScaleEstimate:
 
 
 class MetricScaleEstimator:
-    """Robust running estimate of metres per model depth unit."""
+    """Robust running estimate of metres per model depth unit (safe to share between threads)."""
 
     def __init__(self, config: MetricScaleConfig | None = None) -> None:
         """Start with no observations."""
         self.config = config or MetricScaleConfig()
         self._ratios: deque[float] = deque(maxlen=self.config.history)
+        self._lock = threading.Lock()
 
     def reset(self) -> None:
         """Forget every observation."""
-        self._ratios.clear()
+        with self._lock:
+            self._ratios.clear()
 
     def observe(self, metric_depths: np.ndarray, model_depths: np.ndarray) -> int:
         """Add ratios of metric hand depths to model depths; return how many were kept.
@@ -86,15 +89,17 @@ class MetricScaleEstimator:
             ratios = metric / model
         keep = (np.isfinite(ratios) & (metric > 0) & (model > 0)
                 & (ratios > self.config.min_ratio) & (ratios < self.config.max_ratio))
-        self._ratios.extend(ratios[keep].tolist())
+        with self._lock:
+            self._ratios.extend(ratios[keep].tolist())
         return int(keep.sum())
 
     def estimate(self) -> ScaleEstimate:
         """Return the current estimate; ``initial`` with infinite uncertainty until enough data."""
-        count = len(self._ratios)
+        with self._lock:
+            ratios = np.array(self._ratios, dtype=np.float64)
+        count = len(ratios)
         if count < self.config.min_samples:
             return ScaleEstimate(self.config.initial, float('inf'), count)
-        ratios = np.fromiter(self._ratios, dtype=np.float64, count=count)
         median = float(np.median(ratios))
         spread = MAD_TO_SIGMA * float(np.median(np.abs(ratios - median)))
         # Standard error of a median: about 1.2533 sigma / sqrt(n) for normal data.

@@ -93,8 +93,8 @@ class StreamingEngine:
 
         """
         frame = self._prepare(image, int(timestamp_ns), intrinsics)
-        if self._ba is not None:
-            self._source_images[frame.index] = image
+        if self._ba is not None:  # a copy: callers may reuse their image buffer
+            self._source_images[frame.index] = image.copy()
         self._pending.append(frame)
         self._frames_pushed += 1
         if len(self._pending) >= self._block_size():
