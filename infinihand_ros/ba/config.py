@@ -139,6 +139,26 @@ class CorrectionConfig:
 
 
 @dataclass(frozen=True)
+class WorkerConfig:
+    """How the background BA thread shares the machine with the stream.
+
+    Attributes:
+        niceness: CPU niceness of the BA thread (0..19); 19 keeps the stream's latency but lets
+            BA fall behind on a saturated CPU, 0 shares the CPU evenly (offline conversion).
+        max_queued_selections: pool selections allowed to wait; older ones are dropped.
+
+    """
+
+    niceness: int = 19
+    max_queued_selections: int = 2
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.niceness <= 19 or self.max_queued_selections < 1:
+            raise ValueError(f'worker needs niceness in 0..19 and max_queued_selections >= 1, '
+                             f'got {self.niceness} and {self.max_queued_selections}')
+
+
+@dataclass(frozen=True)
 class BAConfig:
     """All bundle-adjustment settings (``config/ba.yaml``, section ``ba``)."""
 
@@ -146,6 +166,7 @@ class BAConfig:
     solver: SolverConfig = field(default_factory=SolverConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     corrections: CorrectionConfig = field(default_factory=CorrectionConfig)
+    worker: WorkerConfig = field(default_factory=WorkerConfig)
 
 
 def load_ba_config(path: str | Path | None = None) -> BAConfig:

@@ -21,6 +21,7 @@ import queue
 import threading
 import time
 
+import cv2
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.corrections import CorrectionTrack
 from infinihand_ros.ba.correspondences import build_problem
@@ -33,12 +34,6 @@ import numpy as np
 import torch
 
 logger = logging.getLogger(__name__)
-
-#: Pool selections allowed to wait while BA runs; older ones are dropped.
-MAX_QUEUED_SELECTIONS = 2
-#: Niceness of the worker thread: BA only gets CPU time the stream leaves (paper: BA runs in
-#: the background and must not slow the per-frame predictions).
-WORKER_NICENESS = 19
 
 
 @dataclass(frozen=True)
@@ -121,9 +116,9 @@ def run_request(request: BARequest, config: BAConfig,
 class BundleAdjustmentWorker:
     """Background thread that runs BA requests in order, never more than a few behind.
 
-    The thread runs at a low priority with one torch thread, so BA takes the CPU time the
-    stream leaves. When it falls behind, the oldest queued pool selection is dropped (counted in
-    ``dropped``): a stream always gets its newest selections refined and memory stays bounded.
+    The thread runs with one torch thread at the configured niceness (default 19: BA takes the
+    CPU time the stream leaves). When it falls behind, the oldest queued pool selection is
+    dropped (counted in ``dropped``): the newest selections get refined and memory stays bounded.
     """
 
     def __init__(self, config: BAConfig,
@@ -158,8 +153,9 @@ class BundleAdjustmentWorker:
             if self._closing or not self._thread.is_alive():
                 raise InputError('BA worker: submit after close(); create a new worker')
             if isinstance(item, _Selection):
+                limit = self.config.worker.max_queued_selections
                 selections = [queued for queued in self._queued if isinstance(queued, _Selection)]
-                for stale in selections[:max(0, len(selections) - MAX_QUEUED_SELECTIONS + 1)]:
+                for stale in selections[:max(0, len(selections) - limit + 1)]:
                     self._queued.remove(stale)
                     self.dropped += 1
                     logger.info('BA worker behind: dropped the selection of frames %s',
@@ -199,10 +195,14 @@ class BundleAdjustmentWorker:
     def _run(self) -> None:
         """Serve requests until closed and drained, at a low CPU priority."""
         try:  # Linux threads are tasks: only this thread yields the CPU to the stream.
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(), WORKER_NICENESS)
+            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(),
+                           self.config.worker.niceness)
         except (AttributeError, OSError) as exc:
             logger.info('BA worker: could not lower its priority (%s)', exc)
         torch.set_num_threads(1)  # per calling thread: the stream keeps its own thread count
+        # OpenCV's pool threads would run BA's image work at normal priority: keep it in this
+        # thread (process-wide; the stream's only OpenCV work is a resize per frame).
+        cv2.setNumThreads(1)
         while True:
             with self._wake:
                 while not self._queued and not self._closing:
