@@ -6,11 +6,12 @@ Renders a short synthetic sequence (518x378, both hands) once and replays it as 
 ``--frames`` frames with increasing stamps. Runs the engine in per-frame mode (frames/s, push
 latency p50/p95 after the anchors, resident memory after 300 frames and at the end) and in
 windowed mode (frames/s); with ``--ba`` also per-frame mode with bundle adjustment off and on
-(push latencies side by side, BA calls done). The untrained model's hand masks cover whole
-frames, which leaves BA nothing to track, so both BA runs ignore hands (presence threshold
-0.999): BA then does its full work (tracking and solving over the model's depth and poses)
-while the stream runs. Prints one JSON line with ``--json``. Issue targets for the tiny config
-on 2 cores: >= 10 frames/s per frame, p95 <= 150 ms, RSS at the end <= RSS at 300 frames + 10 %.
+(push latencies side by side; BA selections submitted, done, dropped, failed). The untrained
+model's hand masks cover whole frames, which leaves BA nothing to track, so both BA runs ignore
+hands (presence threshold 0.999): BA then does its full work (tracking and solving over the
+model's depth and poses) while the stream runs. Prints one JSON line with ``--json``. Issue
+targets for the tiny config on 2 cores: >= 10 frames/s per frame, p95 <= 150 ms, RSS at the end
+<= RSS at 300 frames + 10 %.
 """
 
 import argparse
@@ -100,7 +101,8 @@ def main() -> None:
             with StreamingEngine(ba_config, model) as engine:
                 run = _per_frame(engine, frames, args.frames)
                 if enabled:
-                    figures['ba_calls_done'] = engine.ba_calls_done
+                    figures.update({f'ba_{key}': value
+                                    for key, value in engine.ba_statistics.items()})
             figures[f'latency_p50_ms_{name}'] = run['latency_p50_ms']
             figures[f'latency_p95_ms_{name}'] = run['latency_p95_ms']
     rounded = {key: (None if value is None else round(value, 1)) for key, value in figures.items()}

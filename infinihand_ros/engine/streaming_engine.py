@@ -69,9 +69,12 @@ class StreamingEngine:
         return BundleAdjustmentStage(load_ba_config(self.config.ba_config))
 
     @property
-    def ba_calls_done(self) -> int:
-        """Return the number of finished bundle-adjustment calls folded in (0 when BA is off)."""
-        return 0 if self._ba is None else self._ba.calls_done
+    def ba_statistics(self) -> dict[str, int]:
+        """Return BA selections submitted, calls done, selections dropped and calls failed."""
+        if self._ba is None:
+            return {'submitted': 0, 'done': 0, 'dropped': 0, 'failed': 0}
+        return {'submitted': self._ba.calls_submitted, 'done': self._ba.calls_done,
+                'dropped': self._ba.worker.dropped, 'failed': self._ba.worker.failures}
 
     @property
     def metric_scale(self) -> ScaleEstimate:
