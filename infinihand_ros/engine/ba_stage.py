@@ -16,8 +16,7 @@ from infinihand_ros.ba.keyframe_pool import BinaryKeyframePool
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import FrameResult
-from infinihand_ros.core.datatypes import HandState
-from infinihand_ros.core.mano_frames import transform_mano_params
+from infinihand_ros.engine.decode import place_in_world
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -32,15 +31,6 @@ def hand_mask_from_boxes(result: FrameResult) -> np.ndarray:
     return mask
 
 
-def _move_hand(hand: HandState, pose: CameraPose) -> HandState:
-    """Return the hand with its world-frame joints and MANO parameters under ``pose``."""
-    # MANO's root joint J0 is the wrist at rest: wrist = J0 + transl in any frame.
-    root = hand.joints_cam[0] - hand.mano_cam.transl
-    return replace(hand, joints_world=pose.to_world(hand.joints_cam),
-                   mano_world=transform_mano_params(hand.mano_cam, pose.rotation,
-                                                    pose.translation, root))
-
-
 class BundleAdjustmentStage:
     """Keyframes into the pool, BA in a background thread, live corrections onto results."""
 
@@ -53,8 +43,8 @@ class BundleAdjustmentStage:
         self.calls_submitted = 0
         self.calls_done = 0
 
-    def apply(self, result: FrameResult, image: np.ndarray) -> FrameResult:
-        """Feed a result (and its source RGB image) to BA; return it with the live correction.
+    def apply(self, result: FrameResult, image: np.ndarray | None) -> FrameResult:
+        """Feed a result (and, for keyframes, its source RGB image) to BA; return it corrected.
 
         Never waits for BA: finished calls are folded in, a triggered selection is queued.
         """
@@ -63,7 +53,7 @@ class BundleAdjustmentStage:
                                     output.T_world_cam_raw)
             self.calls_done += 1
         raw = result.camera_pose
-        if result.is_keyframe and result.depth is not None:
+        if result.is_keyframe and result.depth is not None and image is not None:
             keyframe = KeyframeInput(result.frame_index, result.timestamp_ns, image, result.depth,
                                      raw.matrix(), result.intrinsics,
                                      hand_mask_from_boxes(result))
@@ -75,7 +65,7 @@ class BundleAdjustmentStage:
         # Corrections are rigid; re-orthonormalise away the rounding of their interpolation.
         pose = CameraPose(Rotation.from_matrix(corrected[:3, :3]).as_matrix(), corrected[:3, 3])
         return replace(result, camera_pose=pose, raw_camera_pose=raw,
-                       hands=tuple(_move_hand(hand, pose) for hand in result.hands))
+                       hands=tuple(place_in_world(hand, pose) for hand in result.hands))
 
     def close(self) -> None:
         """Finish queued BA calls and stop the worker thread."""

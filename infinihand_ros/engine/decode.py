@@ -8,8 +8,8 @@ the results independent of how frames were grouped into blocks.
 """
 
 from dataclasses import dataclass
+from dataclasses import replace
 
-import cv2
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.datatypes import HandState
@@ -62,10 +62,19 @@ class _BlockHands:
     hand_pose: np.ndarray
     betas: np.ndarray
     transl: np.ndarray
-    root_joint: np.ndarray
     joints_cam: np.ndarray
     joints_2d: np.ndarray
     depth_ratio: np.ndarray
+
+
+@dataclass(frozen=True)
+class DecodeSettings:
+    """Thresholds of decoding (from the model's mask config and the engine config)."""
+
+    mask_threshold: float
+    min_pixels: int
+    presence_threshold: float
+    fov_range_rad: tuple[float, float]
 
 
 def _intrinsics_matrices(frames: list[PreparedFrame], predicted: torch.Tensor) -> torch.Tensor:
@@ -79,7 +88,7 @@ def _intrinsics_matrices(frames: list[PreparedFrame], predicted: torch.Tensor) -
 
 
 def _detect_hands(output: GeometryOutput, frames: list[PreparedFrame], hand_branch: HandBranch,
-                  intrinsics: torch.Tensor, settings: 'DecodeSettings') -> _BlockHands:
+                  intrinsics: torch.Tensor, settings: DecodeSettings) -> _BlockHands:
     """Run the hand branch on every hand the masks show in the block."""
     masks = output.hand_masks[0]  # (S, 2, H, W)
     presence = masks.amax(dim=(-2, -1))
@@ -101,7 +110,7 @@ def _detect_hands(output: GeometryOutput, frames: list[PreparedFrame], hand_bran
         presence=numpy(presence[frame_index, side]), box=numpy(boxes[frame_index, side]),
         global_orient=numpy(out.mano_cam.global_orient), hand_pose=numpy(out.mano_cam.hand_pose),
         betas=numpy(out.mano_cam.betas), transl=numpy(out.mano_cam.transl),
-        root_joint=numpy(out.root_joint), joints_cam=numpy(out.joints_cam),
+        joints_cam=numpy(out.joints_cam),
         joints_2d=numpy(out.joints_2d), depth_ratio=numpy(depth_ratio))
 
 
@@ -132,39 +141,25 @@ def _hand_depth_ratios(depth: torch.Tensor, frame_index: torch.Tensor, joints_2d
     return ratios.nanmedian(dim=-1).values
 
 
+def place_in_world(hand: HandState, pose: CameraPose) -> HandState:
+    """Return ``hand`` with joints and MANO parameters in the world frame of ``pose`` (eq. 9)."""
+    # MANO rotates about its rest root joint J0, and the posed wrist is J0 + transl in any frame.
+    root = hand.joints_cam[0] - hand.mano_cam.transl
+    return replace(hand, joints_world=pose.to_world(hand.joints_cam),
+                   mano_world=transform_mano_params(hand.mano_cam, pose.rotation,
+                                                    pose.translation, root))
+
+
 def _hand_state(hands: _BlockHands, row: int, letterbox: Letterbox, pose: CameraPose
                 ) -> HandState:
     """Build one hand's state in camera and world frames, pixels mapped to the source image."""
     mano_cam = ManoParams(hands.global_orient[row], hands.hand_pose[row], hands.betas[row],
                           hands.transl[row])
     box = letterbox.points_to_source(hands.box[row].reshape(2, 2)).reshape(4)
-    return HandState(
+    return place_in_world(HandState(
         side=int(hands.side[row]), mano_cam=mano_cam, joints_cam=hands.joints_cam[row],
         joints_2d=letterbox.points_to_source(hands.joints_2d[row]), box_xyxy=box,
-        confidence=float(np.clip(hands.presence[row], 0.0, 1.0)),
-        mano_world=transform_mano_params(mano_cam, pose.rotation, pose.translation,
-                                         hands.root_joint[row]),
-        joints_world=pose.to_world(hands.joints_cam[row]))
-
-
-def _source_depth(depth: np.ndarray, letterbox: Letterbox) -> np.ndarray:
-    """Crop the letterbox padding off a model-size depth map and resize it to the source size."""
-    width, height = letterbox.source_size
-    left = int(round(letterbox.offset_x - 0.5 * letterbox.scale_x + 0.5))
-    top = int(round(letterbox.offset_y - 0.5 * letterbox.scale_y + 0.5))
-    inner = depth[top:top + int(round(height * letterbox.scale_y)),
-                  left:left + int(round(width * letterbox.scale_x))]
-    return cv2.resize(inner, (width, height), interpolation=cv2.INTER_LINEAR).astype(np.float32)
-
-
-@dataclass(frozen=True)
-class DecodeSettings:
-    """Thresholds of decoding (from the model's mask config and the engine config)."""
-
-    mask_threshold: float
-    min_pixels: int
-    presence_threshold: float
-    fov_range_rad: tuple[float, float]
+        confidence=float(np.clip(hands.presence[row], 0.0, 1.0))), pose)
 
 
 def decode_block(output: GeometryOutput, frames: list[PreparedFrame], hand_branch: HandBranch,
@@ -192,7 +187,7 @@ def decode_block(output: GeometryOutput, frames: list[PreparedFrame], hand_branc
         depth = None
         if frame.keyframe:
             model_depth = output.depth[0, row].detach().float().cpu().numpy() * metric
-            depth = _source_depth(model_depth, frame.letterbox)
+            depth = frame.letterbox.map_to_source(model_depth).astype(np.float32)
         results.append(FrameResult(
             timestamp_ns=frame.timestamp_ns, frame_index=frame.index, camera_pose=pose,
             intrinsics=source_intrinsics,

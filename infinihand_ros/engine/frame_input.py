@@ -39,6 +39,15 @@ class Letterbox:
                           (intrinsics.cx - self.offset_x) / self.scale_x,
                           (intrinsics.cy - self.offset_y) / self.scale_y, *self.source_size)
 
+    def map_to_source(self, values_model: np.ndarray) -> np.ndarray:
+        """Crop the padding off a model-size (H, W) map and resize it to the source size."""
+        width, height = self.source_size
+        left = int(round(self.offset_x - 0.5 * self.scale_x + 0.5))
+        top = int(round(self.offset_y - 0.5 * self.scale_y + 0.5))
+        inner = values_model[top:top + int(round(height * self.scale_y)),
+                             left:left + int(round(width * self.scale_x))]
+        return cv2.resize(inner, (width, height), interpolation=cv2.INTER_LINEAR)
+
     def points_to_source(self, points_model: np.ndarray) -> np.ndarray:
         """Map (..., 2) model-input pixels to source pixels."""
         offset = np.array([self.offset_x, self.offset_y])

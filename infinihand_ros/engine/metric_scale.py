@@ -16,6 +16,8 @@ import numpy as np
 
 #: Converts a median absolute deviation into a normal standard deviation.
 MAD_TO_SIGMA: Final = 1.4826
+#: Standard error of a median in units of sigma / sqrt(n), for normal data (sqrt(pi / 2)).
+MEDIAN_STANDARD_ERROR: Final = 1.2533
 
 
 @dataclass(frozen=True)
@@ -102,5 +104,4 @@ class MetricScaleEstimator:
             return ScaleEstimate(self.config.initial, float('inf'), count)
         median = float(np.median(ratios))
         spread = MAD_TO_SIGMA * float(np.median(np.abs(ratios - median)))
-        # Standard error of a median: about 1.2533 sigma / sqrt(n) for normal data.
-        return ScaleEstimate(median, 1.2533 * spread / np.sqrt(count), count)
+        return ScaleEstimate(median, MEDIAN_STANDARD_ERROR * spread / np.sqrt(count), count)

@@ -60,7 +60,7 @@ class StreamingEngine:
         self._decoding: deque[Future] = deque()
         self._frames_pushed = 0
         self._ba = self._new_ba_stage()
-        self._source_images: dict[int, np.ndarray] = {}  # frames in flight, for BA only
+        self._source_images: dict[int, np.ndarray] = {}  # keyframes in flight, for BA only
 
     def _new_ba_stage(self) -> BundleAdjustmentStage | None:
         """Return a fresh BA stage when bundle adjustment is on."""
@@ -96,7 +96,7 @@ class StreamingEngine:
 
         """
         frame = self._prepare(image, int(timestamp_ns), intrinsics)
-        if self._ba is not None:  # a copy: callers may reuse their image buffer
+        if self._ba is not None and frame.keyframe:  # a copy: callers may reuse the buffer
             self._source_images[frame.index] = image.copy()
         self._pending.append(frame)
         self._frames_pushed += 1
@@ -176,6 +176,6 @@ class StreamingEngine:
         while self._decoding and (wait or self._decoding[0].done()):
             results.extend(self._decoding.popleft().result())
         if self._ba is not None:
-            results = [self._ba.apply(result, self._source_images.pop(result.frame_index))
+            results = [self._ba.apply(result, self._source_images.pop(result.frame_index, None))
                        for result in results]
         return results
