@@ -47,7 +47,12 @@ def uv_embedding(height: int, width: int, channels: int, aspect_ratio: float,
 
 
 class ResidualConvUnit(nn.Module):
-    """x + conv2(relu(conv1(relu(x)))) with 3x3 convs."""
+    """relu(x) + conv2(relu(conv1(relu(x)))) with 3x3 convs.
+
+    The residual is ``relu(x)``, not ``x``: upstream (VGGT, LingBot-Map ``ResidualConvUnit``)
+    applies an in-place ReLU to its input first, which overwrites the tensor it adds back.
+    Trained DPT weights expect exactly that.
+    """
 
     def __init__(self, features: int) -> None:
         """Build two 3x3 convs of width ``features``."""
@@ -57,7 +62,8 @@ class ResidualConvUnit(nn.Module):
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """Return the residual unit's output (same shape as ``x``)."""
-        return x + self.conv2(F.relu(self.conv1(F.relu(x))))
+        activated = F.relu(x)
+        return activated + self.conv2(F.relu(self.conv1(activated)))
 
 
 class FusionBlock(nn.Module):
