@@ -8,18 +8,29 @@ Two parts with one job each:
   anchors attends bidirectionally among itself and is kept in full forever. After that, every
   keyframe is stored and every non-keyframe attends but is not stored.
 - ``KVMemory`` holds, per layer, the cached keys/values (after qk-norm and RoPE) in three parts:
-  trajectory memory (the ``special_tokens`` first tokens of each keyframe evicted from the window),
-  the anchor frames in full, and the most recent ``window`` keyframes in full (``window=None``
-  keeps every keyframe, as the camera head's causal cache does).
+  the anchor frames in full, the most recent ``window`` keyframes in full (the pose-reference
+  window; ``window=None`` keeps every keyframe) and trajectory memory (the first
+  ``special_tokens`` tokens of each keyframe evicted from the window, at most
+  ``max_trajectory_frames`` of them, the newest).
 
-A frame attends to trajectory + anchors + the window as it stands after all earlier frames +
-itself. Inside a multi-frame block, frame j sees block frame i < j only if i is stored, and only
-its special tokens if i (or an older window frame) would have left the window before j. So a
-block gives the same result as its frames one by one. The cached token count of each layer is
-``anchor_frames * P + min(keyframes, window) * P + special_tokens * evicted``.
+The window rule is LingBot-Map's: a keyframe is appended first, the window is evicted down to
+``window`` keyframes, then the frame attends, so the window it sees *includes itself* (it sees
+the ``window - 1`` keyframes before it). A non-keyframe sees the ``window`` stored keyframes
+plus itself and is not stored. In one sentence: a frame attends to the memory as it stands right
+after its own turn (anchors + window + trajectory), plus itself when it is not stored. Inside a
+multi-frame block the same visibility is reproduced with masks, so a block gives the same
+result as its frames one by one. After a block the cached token count of each layer is
+``anchor_frames * P + min(keyframes, window) * P + special_tokens * min(evicted, cap)``.
+
+Storage does not grow with the stream: each layer owns one preallocated buffer laid out as
+``[block scratch | anchors | window slots | trajectory slots]``; window and trajectory slots are
+rings written in place, so a steady-state frame allocates nothing that depends on the stream's
+length, and the keys a frame attends to are one contiguous slice of the buffer (attention does
+not depend on key order). Capacities grow (rarely: the first anchors, the first long block, an
+unbounded window or trajectory) by reallocating with doubling. While autograd records (training),
+writes go to a copy of the buffer instead, so tensors saved for backward are never overwritten.
 """
 
-from collections import deque
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -123,78 +134,79 @@ class FrameSchedule:
             self.keyframes_stored += sum(plan.stored)
 
 
-class _TokenBuffer:
-    """Append-only (2, B, heads, n, D) key/value tokens with amortised growth."""
+@dataclass
+class _Region:
+    """A run of frame slots in a layer buffer: ``capacity`` slots of ``tokens`` tokens each."""
 
-    def __init__(self) -> None:
-        self.data: torch.Tensor | None = None
-        self.length = 0
+    start: int = 0
+    capacity: int = 0
+    tokens: int = 0
 
-    def append(self, kv: torch.Tensor) -> None:
-        needed = self.length + kv.shape[-2]
-        if self.data is None or needed > self.data.shape[-2]:
-            capacity = max(needed, 2 * (0 if self.data is None else self.data.shape[-2]))
-            grown = kv.new_empty(*kv.shape[:-2], capacity, kv.shape[-1])
-            if self.data is not None:
-                grown[..., :self.length, :] = self.view()
-            self.data = grown
-        self.data[..., self.length:needed, :] = kv
-        self.length = needed
+    @property
+    def end(self) -> int:
+        return self.start + self.capacity * self.tokens
 
-    def view(self) -> torch.Tensor | None:
-        return None if self.data is None else self.data[..., :self.length, :]
-
-    def keep_last(self, count: int) -> None:
-        """Drop all but the newest ``count`` tokens."""
-        if self.data is not None and self.length > count:
-            self.data[..., :count, :] = self.data[..., self.length - count:self.length, :].clone()
-            self.length = count
+    def slot(self, index: int) -> slice:
+        """Return the token range of slot ``index``."""
+        first = self.start + index * self.tokens
+        return slice(first, first + self.tokens)
 
 
-class _LayerStore:
-    """Cached keys/values of one layer: trajectory, anchors and window, each (2, B, H, n, D)."""
+@dataclass
+class _Ring:
+    """Frame slots filled in order, then overwritten oldest first; each holds a keyframe order."""
 
-    def __init__(self) -> None:
-        self.trajectory = _TokenBuffer()
-        self.anchors: list[torch.Tensor] = []
-        self.window: deque[torch.Tensor] = deque()
-        self.pending: torch.Tensor | None = None
+    orders: list[int]
+    limit: int | None
+    next_slot: int = 0
 
-    def parts(self) -> list[torch.Tensor]:
-        trajectory = self.trajectory.view()
-        return ([] if trajectory is None else [trajectory]) + self.anchors + list(self.window)
+    @property
+    def filled(self) -> int:
+        return len(self.orders)
 
-    def num_tokens(self) -> int:
-        return sum(part.shape[-2] for part in self.parts())
+    @property
+    def full(self) -> bool:
+        return self.limit is not None and self.filled >= self.limit
+
+    def target(self) -> int:
+        """Return the slot the next entry goes to (the oldest one when full)."""
+        return self.next_slot if self.full else self.filled
+
+    def put(self, order: int) -> int:
+        """Record an entry of keyframe ``order``; return its slot."""
+        slot = self.target()
+        if self.full:
+            self.orders[slot] = order
+            self.next_slot = (slot + 1) % self.limit
+        else:
+            self.orders.append(order)
+        return slot
+
+    def oldest(self) -> int:
+        """Return the slot of the oldest entry."""
+        return self.next_slot if self.full else 0
+
+
+@dataclass(frozen=True)
+class _Write:
+    """One copy inside every layer's buffer, or a copy of the current block into it."""
+
+    source: slice | None  # None: from the current keys/values (``block_frame``)
+    target: slice
+    block_frame: int = 0
 
 
 class _LayerContext:
     """Attention of one layer's current tokens over its cache (see ``AttentionContext``)."""
 
-    def __init__(self, memory: 'KVMemory', store: _LayerStore) -> None:
+    def __init__(self, memory: 'KVMemory', layer: int) -> None:
         self._memory = memory
-        self._store = store
+        self._layer = layer
 
     def attend(self, query: torch.Tensor, key: torch.Tensor, value: torch.Tensor
                ) -> torch.Tensor:
         """Return attention of (B, H, S*P, D) queries over cached + current keys/values."""
-        parts = self._store.parts()
-        self._store.pending = torch.stack((key, value))
-        keys = torch.cat([part[0] for part in parts] + [key], dim=-2)
-        values = torch.cat([part[1] for part in parts] + [value], dim=-2)
-        masks = self._memory.block_masks
-        if masks is None:
-            return F.scaled_dot_product_attention(query, keys, values)
-        cached = keys.shape[-2] - key.shape[-2]
-        per_frame = self._memory.tokens_per_frame
-        outputs = []
-        for frame, mask in enumerate(masks):
-            end = cached + (frame + 1) * per_frame
-            visible = mask[:end]
-            outputs.append(F.scaled_dot_product_attention(
-                query[..., frame * per_frame:(frame + 1) * per_frame, :], keys[..., :end, :],
-                values[..., :end, :], attn_mask=None if bool(visible.all()) else visible[None]))
-        return torch.cat(outputs, dim=-2)
+        return self._memory.attend(self._layer, query, key, value)
 
 
 class KVMemory:
@@ -210,13 +222,21 @@ class KVMemory:
 
         Args:
             num_layers: attention layers sharing this policy.
-            window: keyframes kept in full, or None to keep every keyframe.
-            special_tokens: leading tokens of each frame kept as trajectory memory on eviction.
-            max_trajectory_frames: trajectory memory keeps at most this many evicted frames
-                (the newest; up to a quarter more between trims), or None for no limit. This
-                bounds memory and attention cost over arbitrarily long streams.
+            window: keyframes kept in full, the current keyframe included (LingBot-Map's
+                ``kv_cache_sliding_window``), or None to keep every keyframe.
+            special_tokens: leading tokens of each frame kept as trajectory memory on eviction
+                (clipped to the tokens per frame).
+            max_trajectory_frames: trajectory memory keeps the newest this-many evicted frames,
+                or None for no limit. This bounds memory and attention cost over arbitrarily
+                long streams.
+
+        Raises:
+            ValueError: for a window or trajectory limit below 1.
 
         """
+        for name, limit in (('window', window), ('max_trajectory_frames', max_trajectory_frames)):
+            if limit is not None and limit < 1:
+                raise ValueError(f'KVMemory: {name} must be >= 1 or None, got {limit}')
         self.num_layers = num_layers
         self.window = window
         self.special_tokens = special_tokens
@@ -225,88 +245,300 @@ class KVMemory:
 
     def reset(self) -> None:
         """Drop every cached token (start of a new sequence)."""
-        self._stores = [_LayerStore() for _ in range(self.num_layers)]
+        self._data: list[torch.Tensor | None] = [None] * self.num_layers
+        self._scratch = _Region()
+        self._anchors = _Region()
+        self._window_slots = _Region()
+        self._trajectory_slots = _Region()
+        self._anchor_count = 0
+        self._window = _Ring([], self.window)
+        self._trajectory = _Ring([], self.max_trajectory_frames)
         self._plan: BlockPlan | None = None
-        self._window_orders: deque[int] = deque()
-        self.block_masks: torch.Tensor | None = None
+        self._writes: list[_Write] = []
+        self._key_range = slice(0, 0)
+        self._frame_masks: list[torch.Tensor | None] = []
         self.tokens_per_frame = 0
+        self._reallocations = 0
 
     def cached_tokens(self, layer: int) -> int:
-        """Return the number of cached tokens of ``layer``."""
-        return self._stores[layer].num_tokens()
+        """Return the number of cached tokens of ``layer`` (the same for every layer)."""
+        del layer
+        return (self._anchor_count * self._anchors.tokens
+                + self._window.filled * self._window_slots.tokens
+                + self._trajectory.filled * self._trajectory_slots.tokens)
+
+    @property
+    def reallocations(self) -> int:
+        """Return how often the buffers were reallocated to grow (0 in a steady state)."""
+        return self._reallocations
+
+    def allocated_tokens(self) -> int:
+        """Return the token capacity of each layer's buffer (bounded for bounded settings)."""
+        return self._trajectory_slots.end
 
     def begin(self, plan: BlockPlan, tokens_per_frame: int, device: torch.device) -> None:
-        """Prepare attention for the block ``plan`` with P = ``tokens_per_frame`` tokens/frame."""
-        self._plan = plan
+        """Prepare attention for the block ``plan`` with P = ``tokens_per_frame`` tokens/frame.
+
+        Raises:
+            ValueError: when the tokens per frame differ from earlier blocks of the sequence.
+
+        """
+        if self.tokens_per_frame not in (0, tokens_per_frame):
+            raise ValueError(f'KVMemory: {tokens_per_frame} tokens per frame, but the sequence '
+                             f'started with {self.tokens_per_frame}; reset() between sequences '
+                             'of different image sizes')
         self.tokens_per_frame = tokens_per_frame
-        self.block_masks = self._build_masks(plan, tokens_per_frame, device)
+        self._plan = plan
+        self._layout(plan, tokens_per_frame)
+        self._writes, self._key_range, self._frame_masks = self._schedule(plan, device)
+        self._attended = [False] * self.num_layers
 
     def context(self, layer: int) -> _LayerContext:
         """Return the attention context of ``layer`` for the current block."""
         if self._plan is None:
             raise RuntimeError('KVMemory.context called before begin(plan, ...)')
-        return _LayerContext(self, self._stores[layer])
+        return _LayerContext(self, layer)
+
+    def attend(self, layer: int, query: torch.Tensor, key: torch.Tensor, value: torch.Tensor
+               ) -> torch.Tensor:
+        """Store the block's keys/values of ``layer`` as planned and attend over the cache."""
+        if self._plan is None:
+            raise RuntimeError('KVMemory.attend called before begin(plan, ...)')
+        data = self._buffer(layer, key, value)
+        current = torch.stack((key, value))
+        for write in self._writes:
+            if write.source is None:
+                per_frame = self.tokens_per_frame
+                tokens = current[..., write.block_frame * per_frame:
+                                 (write.block_frame + 1) * per_frame, :]
+            else:
+                tokens = data[..., write.source, :]
+            data = self._write(layer, data, write.target, tokens)
+        self._attended[layer] = True
+        keys, values = data[0, ..., self._key_range, :], data[1, ..., self._key_range, :]
+        if not self._frame_masks:
+            return F.scaled_dot_product_attention(query, keys, values)
+        per_frame = self.tokens_per_frame
+        outputs = []
+        for frame, mask in enumerate(self._frame_masks):
+            rows = slice(frame * per_frame, (frame + 1) * per_frame)
+            outputs.append(F.scaled_dot_product_attention(query[..., rows, :], keys, values,
+                                                          attn_mask=mask))
+        return torch.cat(outputs, dim=-2)
 
     def commit(self) -> None:
-        """Store the current block's keys/values and evict window frames beyond ``window``."""
-        plan, per_frame = self._plan, self.tokens_per_frame
+        """Store the current block (multi-frame blocks) and advance the window bookkeeping."""
+        plan = self._plan
         if plan is None:
             raise RuntimeError('KVMemory.commit called before begin(plan, ...)')
-        for store in self._stores:
-            if store.pending is None:
-                raise RuntimeError('KVMemory.commit: a layer did not attend during the block')
-            if plan.is_anchor:
-                store.anchors.append(store.pending)
-            else:
-                for frame, stored in enumerate(plan.stored):
-                    if stored:
-                        store.window.append(store.pending[..., frame * per_frame:
-                                                          (frame + 1) * per_frame, :].clone())
-                self._evict(store)
-            store.pending = None
-        if not plan.is_anchor:
-            self._window_orders.extend(order for order, stored in
-                                       zip(plan.keyframes_before, plan.stored) if stored)
-            while self.window is not None and len(self._window_orders) > self.window:
-                self._window_orders.popleft()
-        self._plan = None
-        self.block_masks = None
-
-    def _evict(self, store: _LayerStore) -> None:
-        """Move the oldest window frames' special tokens to trajectory memory."""
-        while self.window is not None and len(store.window) > self.window:
-            kept = store.window.popleft()[..., :self.special_tokens, :]
-            store.trajectory.append(kept)
-            if self.max_trajectory_frames is not None:
-                limit = self.max_trajectory_frames * kept.shape[-2]
-                if store.trajectory.length > limit + limit // 4:
-                    store.trajectory.keep_last(limit)
-
-    def _build_masks(self, plan: BlockPlan, per_frame: int, device: torch.device
-                     ) -> torch.Tensor | None:
-        """Return (S, L) key visibility per query frame, or None when every key is visible."""
-        if plan.is_anchor or plan.num_frames == 1:
-            return None
-        count = plan.num_frames
-        store = self._stores[0]
-        trajectory = store.trajectory.length
-        anchor_frames = sum(part.shape[-2] for part in store.anchors) // per_frame
-        window_orders = torch.tensor(list(self._window_orders), dtype=torch.long, device=device)
-        block_orders = torch.tensor(plan.keyframes_before, dtype=torch.long, device=device)
-        stored = torch.tensor(plan.stored, dtype=torch.bool, device=device)
-        if self.window is None:
-            lowest = torch.full((count, 1), -1, dtype=torch.long, device=device)
+        if not all(self._attended):
+            raise RuntimeError('KVMemory.commit: a layer did not attend during the block')
+        if plan.is_anchor:
+            self._anchor_count += plan.num_frames
+        elif plan.num_frames == 1:
+            if plan.stored[0]:
+                self._store_keyframe(plan.keyframes_before[0])
         else:
-            lowest = (block_orders - self.window)[:, None]
-        window_codes = torch.where(window_orders[None] >= lowest, _FULL, _SPECIAL)
+            for layer in range(self.num_layers):
+                data = self._data[layer]
+                for write in self._block_commit_writes(plan):
+                    data = self._write(layer, data, write.target, data[..., write.source, :])
+            for order, stored in zip(plan.keyframes_before, plan.stored):
+                if stored:
+                    self._store_keyframe(order)
+        self._plan = None
+        self._writes, self._frame_masks = [], []
+
+    # Layout and storage.
+
+    def _layout(self, plan: BlockPlan, per_frame: int) -> None:
+        """Grow the regions the block needs (rare: reallocates and keeps the cached tokens)."""
+        special = min(self.special_tokens, per_frame)
+        count = plan.num_frames
+        scratch = count if not plan.is_anchor and count > 1 else (0 if plan.is_anchor else 1)
+        anchors = self._anchor_count + count if plan.is_anchor else self._anchor_count
+        window = self._window.filled + (0 if plan.is_anchor else sum(plan.stored))
+        trajectory = self._trajectory.filled + max(0, window - (self.window or window))
+        needed = (max(scratch, self._scratch.capacity), max(anchors, self._anchors.capacity),
+                  self._capped(window, self._window_slots.capacity, self.window),
+                  self._capped(trajectory, self._trajectory_slots.capacity,
+                               self.max_trajectory_frames))
+        current = (self._scratch.capacity, self._anchors.capacity,
+                   self._window_slots.capacity, self._trajectory_slots.capacity)
+        if needed == current and self._scratch.tokens == per_frame:
+            return
+        old = (self._scratch, self._anchors, self._window_slots, self._trajectory_slots)
+        start = 0
+        regions = []
+        for capacity, tokens in zip(needed, (per_frame, per_frame, per_frame, special)):
+            regions.append(_Region(start, capacity, tokens))
+            start += capacity * tokens
+        self._scratch, self._anchors, self._window_slots, self._trajectory_slots = regions
+        if self._data[0] is not None:
+            self._reallocations += 1
+        self._data = [None if data is None else self._moved(data, old, regions)
+                      for data in self._data]
+
+    @staticmethod
+    def _capped(needed: int, capacity: int, limit: int | None) -> int:
+        """Return the capacity for ``needed`` slots: doubling growth, never above ``limit``."""
+        if needed <= capacity:
+            return capacity
+        grown = max(needed, 2 * capacity)
+        return grown if limit is None else min(grown, limit)
+
+    @staticmethod
+    def _moved(data: torch.Tensor, old: tuple[_Region, ...], new: list[_Region]
+               ) -> torch.Tensor:
+        """Return a buffer with the new layout holding ``data``'s slots (scratch not kept)."""
+        moved = data.new_zeros(*data.shape[:-2], new[-1].end, data.shape[-1])
+        for before, after in zip(old[1:], new[1:]):
+            length = before.capacity * before.tokens
+            moved[..., after.start:after.start + length, :] = \
+                data[..., before.start:before.end, :]
+        return moved
+
+    def _buffer(self, layer: int, key: torch.Tensor, value: torch.Tensor) -> torch.Tensor:
+        """Return the layer's buffer, allocated on first use with the keys' shape and dtype."""
+        data = self._data[layer]
+        if data is None:
+            data = key.new_zeros(2, *key.shape[:-2], self._trajectory_slots.end, key.shape[-1])
+            self._data[layer] = data
+        elif data.shape[1:3] != key.shape[:2] or data.dtype != key.dtype:
+            raise ValueError(f'KVMemory: keys of batch/heads {tuple(key.shape[:2])} and '
+                             f'{key.dtype} after a sequence started with '
+                             f'{tuple(data.shape[1:3])} and {data.dtype}; reset() first')
+        del value
+        return data
+
+    def _write(self, layer: int, data: torch.Tensor, target: slice, tokens: torch.Tensor
+               ) -> torch.Tensor:
+        """Write ``tokens`` into ``target`` of the layer's buffer; return the buffer."""
+        if torch.is_grad_enabled() and (tokens.requires_grad or data.requires_grad):
+            data = data.clone()  # tensors saved for backward keep the old values
+        data[..., target, :] = tokens
+        self._data[layer] = data
+        return data
+
+    # Planning.
+
+    def _schedule(self, plan: BlockPlan, device: torch.device
+                  ) -> tuple[list[_Write], slice, list[torch.Tensor | None]]:
+        """Return the block's writes before attention, its key range and per-frame masks."""
+        count, per_frame = plan.num_frames, self.tokens_per_frame
+        cache_end = self._cache_end()
+        if plan.is_anchor:
+            first = self._anchors.slot(self._anchor_count).start
+            writes = [_Write(None, self._anchors.slot(self._anchor_count + frame), frame)
+                      for frame in range(count)]
+            return writes, slice(self._anchors.start, first + count * per_frame), []
+        if count == 1 and plan.stored[0]:
+            return self._keyframe_writes(), slice(self._anchors.start, self._cache_end(1)), []
+        block_start = self._scratch.end - count * per_frame
+        writes = [_Write(None, slice(block_start + frame * per_frame,
+                                     block_start + (frame + 1) * per_frame), frame)
+                  for frame in range(count)]
+        if count == 1:
+            return writes, slice(block_start, cache_end), []
+        return writes, slice(block_start, cache_end), self._block_masks(plan, device)
+
+    def _cache_end(self, new_keyframes: int = 0) -> int:
+        """Return the end of the filled cache (after ``new_keyframes`` more are stored)."""
+        window = self._window.filled + new_keyframes
+        if self.window is not None and window > self.window:
+            evicted = window - self.window
+            trajectory = self._trajectory.filled + evicted
+            if self.max_trajectory_frames is not None:
+                trajectory = min(trajectory, self.max_trajectory_frames)
+            return self._trajectory_slots.start + trajectory * self._trajectory_slots.tokens
+        if self._trajectory.filled:
+            return self._trajectory_slots.start + self._trajectory.filled \
+                * self._trajectory_slots.tokens
+        return self._window_slots.start + window * self._window_slots.tokens
+
+    def _keyframe_writes(self) -> list[_Write]:
+        """Return the writes storing one keyframe now: evict the oldest, then take its slot."""
+        writes = []
+        if self._window.full:
+            slot = self._window.oldest()
+            evicted = self._window_slots.slot(slot)
+            special = self._trajectory_slots.tokens
+            writes.append(_Write(slice(evicted.start, evicted.start + special),
+                                 self._trajectory_slots.slot(self._trajectory.target())))
+            writes.append(_Write(None, self._window_slots.slot(slot), 0))
+        else:
+            writes.append(_Write(None, self._window_slots.slot(self._window.filled), 0))
+        return writes
+
+    def _block_commit_writes(self, plan: BlockPlan) -> list[_Write]:
+        """Return the copies from the scratch into window/trajectory slots, frame by frame."""
+        per_frame = self.tokens_per_frame
+        block_start = self._scratch.end - plan.num_frames * per_frame
+        window = _Ring(list(self._window.orders), self.window, self._window.next_slot)
+        trajectory = _Ring(list(self._trajectory.orders), self.max_trajectory_frames,
+                           self._trajectory.next_slot)
+        writes = []
+        special = self._trajectory_slots.tokens
+        for frame, (order, stored) in enumerate(zip(plan.keyframes_before, plan.stored)):
+            if not stored:
+                continue
+            if window.full:
+                evicted = self._window_slots.slot(window.oldest())
+                target = self._trajectory_slots.slot(trajectory.put(window.orders[
+                    window.oldest()]))
+                writes.append(_Write(slice(evicted.start, evicted.start + special), target))
+            slot = window.put(order)
+            source = block_start + frame * per_frame
+            writes.append(_Write(slice(source, source + per_frame),
+                                 self._window_slots.slot(slot)))
+        return writes
+
+    def _store_keyframe(self, order: int) -> None:
+        """Advance the window and trajectory bookkeeping by one stored keyframe."""
+        if self._window.full:
+            self._trajectory.put(self._window.orders[self._window.oldest()])
+        self._window.put(order)
+
+    def _block_masks(self, plan: BlockPlan, device: torch.device) -> list[torch.Tensor | None]:
+        """Return per block frame the (L,) key visibility reproducing frame-by-frame streaming.
+
+        Frame j, after which ``K_j`` keyframes are stored, sees a keyframe of order ``o`` in
+        full when ``o >= K_j - window``, only its special tokens when it has been evicted but
+        is among the newest ``max_trajectory_frames`` evicted, and nothing otherwise; anchors
+        always, later or unstored block frames never, itself in full.
+        """
+        count, per_frame = plan.num_frames, self.tokens_per_frame
+        special = self._trajectory_slots.tokens
+        orders = torch.tensor(plan.keyframes_before, dtype=torch.long, device=device)
+        stored = torch.tensor(plan.stored, dtype=torch.bool, device=device)
+        after = orders + stored.long()  # K_j
+        lowest_full = after - (self.window if self.window is not None else 10 ** 12)
+        lowest_special = (lowest_full - self.max_trajectory_frames
+                          if self.max_trajectory_frames is not None
+                          else torch.full_like(after, -10 ** 12))
+
+        def codes_for(slot_orders: torch.Tensor) -> torch.Tensor:
+            full = slot_orders[None] >= lowest_full[:, None]
+            kept = slot_orders[None] >= lowest_special[:, None]
+            return torch.where(full, _FULL, torch.where(kept, _SPECIAL, _NONE))
+
         index = torch.arange(count, device=device)
-        earlier = (index[None] < index[:, None]) & stored[None]
-        block_codes = torch.where(earlier & (block_orders[None] >= lowest), _FULL,
-                                  torch.where(earlier, _SPECIAL, _NONE))
+        block_codes = codes_for(orders)
+        block_codes = torch.where((index[None] < index[:, None]) & stored[None], block_codes,
+                                  _NONE)
         block_codes[index, index] = _FULL
-        codes = torch.cat((torch.full((count, anchor_frames), _FULL, device=device),
-                           window_codes.expand(count, -1), block_codes), dim=1)
-        is_special = torch.arange(per_frame, device=device) < self.special_tokens
-        visible = (codes[..., None] == _FULL) | ((codes[..., None] == _SPECIAL) & is_special)
-        return torch.cat((torch.ones(count, trajectory, dtype=torch.bool, device=device),
-                          visible.flatten(1)), dim=1)
+        window_codes = codes_for(torch.tensor(self._window.orders, dtype=torch.long,
+                                              device=device))
+        is_special = torch.arange(per_frame, device=device) < special
+        frame_visible = torch.cat((block_codes, window_codes), dim=1)[..., None]
+        frame_visible = ((frame_visible == _FULL)
+                         | ((frame_visible == _SPECIAL) & is_special)).flatten(1)
+        block_part, window_part = frame_visible.split(
+            (count * per_frame, self._window.filled * per_frame), dim=1)
+        trajectory_codes = codes_for(torch.tensor(self._trajectory.orders, dtype=torch.long,
+                                                  device=device))
+        trajectory_part = (trajectory_codes != _NONE).repeat_interleave(special, dim=1)
+        anchors = torch.ones(count, self._anchor_count * per_frame, dtype=torch.bool,
+                             device=device)
+        visible = torch.cat((block_part, anchors, window_part, trajectory_part), dim=1)
+        return [None if bool(row.all()) else row[None] for row in visible]

@@ -38,18 +38,141 @@ def test_cached_tokens_are_anchor_plus_window_plus_trajectory(num_frames: int) -
 
 
 def test_trajectory_memory_is_bounded_on_long_streams() -> None:
-    """With a trajectory cap the cache stops growing, however long the stream."""
+    """With a trajectory cap the cache and its buffers stop growing, however long the stream."""
     anchor, window, per_frame, cap = 2, 3, 10, 8
     memory = KVMemory(1, window, SPECIAL, max_trajectory_frames=cap)
     schedule = FrameSchedule(anchor)
     _run_block(memory, schedule, [True] * anchor, per_frame, 1)
-    sizes = []
+    sizes, allocated = [], []
     for _ in range(200):
         _run_block(memory, schedule, [True], per_frame, 1)
         sizes.append(memory.cached_tokens(0))
+        allocated.append(memory.allocated_tokens())
     full = (anchor + window) * per_frame
-    assert max(sizes) <= full + SPECIAL * (cap + cap // 4)
-    assert min(sizes[-50:]) >= full + SPECIAL * cap
+    assert sizes[-1] == max(sizes) == full + SPECIAL * cap
+    assert len(set(allocated[20:])) == 1
+
+
+def test_steady_state_frames_write_in_place() -> None:
+    """Once the window and trajectory are full, frames reuse the same buffer (no reallocation)."""
+    memory = KVMemory(2, 3, SPECIAL, max_trajectory_frames=4)
+    schedule = FrameSchedule(1)
+    with torch.inference_mode():
+        _run_block(memory, schedule, [True], 10, 2)
+        _run_block(memory, schedule, [True, False, True, True], 10, 2)  # the largest block
+        for _ in range(12):
+            _run_block(memory, schedule, [True], 10, 2)
+        grown, allocated = memory.reallocations, memory.allocated_tokens()
+        for _ in range(50):
+            for flags in ([True], [False], [True, True, False, True], [True]):
+                _run_block(memory, schedule, flags, 10, 2)
+    assert memory.reallocations == grown
+    assert memory.allocated_tokens() == allocated == (4 + 1 + 3) * 10 + 4 * SPECIAL
+
+
+class _ReferenceCache:
+    """LingBot-Map's procedure written plainly: append, evict to the window, then attend."""
+
+    def __init__(self, window: int, cap: int | None) -> None:
+        self.window, self.cap = window, cap
+        self.anchors: list[torch.Tensor] = []
+        self.frames: list[torch.Tensor] = []
+        self.trajectory: list[torch.Tensor] = []
+
+    def step(self, query: torch.Tensor, kv: torch.Tensor, anchor: bool, stored: bool
+             ) -> torch.Tensor:
+        if anchor:
+            self.anchors.append(kv)
+        elif stored:
+            self.frames.append(kv)
+            while len(self.frames) > self.window:
+                self.trajectory.append(self.frames.pop(0)[..., :SPECIAL, :])
+            if self.cap is not None:
+                self.trajectory = self.trajectory[-self.cap:]
+        current = [] if anchor or stored else [kv]
+        keys = torch.cat(self.trajectory + self.anchors + self.frames + current, dim=-2)
+        return torch.nn.functional.scaled_dot_product_attention(query, keys[0], keys[1])
+
+
+@pytest.mark.parametrize('cap', [None, 3])
+def test_memory_matches_the_upstream_procedure_per_frame_and_in_blocks(cap) -> None:
+    """Per-frame and multi-frame blocks both equal append-evict-attend, cap included."""
+    window, per_frame, anchor = 3, 8, 2
+    generator = torch.Generator().manual_seed(0)
+    flags = [True, True, False, True, True, True, False, False, True, True, True, True, True,
+             False, True, True, True, True, True, True, True, True]
+    kvs = torch.randn(len(flags) + anchor, 2, 1, 2, per_frame, 4, generator=generator)
+    queries = torch.randn(len(flags) + anchor, 1, 2, per_frame, 4, generator=generator)
+    reference = _ReferenceCache(window, cap)
+    expected = []
+    anchor_kv = torch.cat(list(kvs[:anchor]), dim=-2)
+    reference.anchors.append(anchor_kv)
+    for index, flag in enumerate(flags, start=anchor):
+        expected.append(reference.step(queries[index], kvs[index], False, flag))
+    for blocks in ([1] * len(flags), [5, 1, 7, 2, 7], [len(flags)]):
+        memory = KVMemory(1, window, SPECIAL, max_trajectory_frames=cap)
+        schedule = FrameSchedule(anchor)
+        plan = schedule.plan([True] * anchor)
+        memory.begin(plan, per_frame, torch.device('cpu'))
+        anchor_query = torch.cat(list(queries[:anchor]), dim=-2)
+        memory.context(0).attend(anchor_query, anchor_kv[0], anchor_kv[1])
+        memory.commit()
+        schedule.commit(plan)
+        outputs, first = [], 0
+        for size in blocks:
+            rows = range(anchor + first, anchor + first + size)
+            plan = schedule.plan(flags[first:first + size])
+            memory.begin(plan, per_frame, torch.device('cpu'))
+            kv = torch.cat([kvs[i] for i in rows], dim=-2)
+            out = memory.context(0).attend(torch.cat([queries[i] for i in rows], dim=-2),
+                                           kv[0], kv[1])
+            memory.commit()
+            schedule.commit(plan)
+            outputs.extend(out.split(per_frame, dim=-2))
+            first += size
+        for frame, (got, want) in enumerate(zip(outputs, expected)):
+            torch.testing.assert_close(got, want, msg=f'blocks {blocks}, frame {frame}')
+
+
+def test_frames_attended_per_step_for_window_w(monkeypatch) -> None:
+    """Window W: a keyframe sees W keyframes (itself included), a non-keyframe W plus itself."""
+    window, per_frame, anchor = 4, 10, 2
+    seen = []
+
+    def spy(query, key, value, attn_mask=None):
+        seen.append(key.shape[-2])
+        return torch.zeros_like(query)
+
+    monkeypatch.setattr('infinihand_ros.model.streaming_memory.F.scaled_dot_product_attention',
+                        spy)
+    memory = KVMemory(1, window, SPECIAL, max_trajectory_frames=100)
+    schedule = FrameSchedule(anchor)
+    _run_block(memory, schedule, [True] * anchor, per_frame, 1)
+    for flag in [True] * 6 + [False]:
+        _run_block(memory, schedule, [flag], per_frame, 1)
+    anchors = anchor * per_frame
+    keyframe_views = [anchors + min(k, window) * per_frame + SPECIAL * max(0, k - window)
+                      for k in range(1, 7)]
+    non_keyframe_view = anchors + (window + 1) * per_frame + SPECIAL * 2
+    assert seen == [anchors] + keyframe_views + [non_keyframe_view]
+
+
+def test_gradients_flow_through_the_cache_across_blocks() -> None:
+    """Training through two windows of one clip: writes never break backward."""
+    memory = KVMemory(1, 2, SPECIAL, max_trajectory_frames=2)
+    schedule = FrameSchedule(1)
+    leaf = torch.randn(1, 2, 70, 4, requires_grad=True)
+    total = 0.0
+    for start, count in ((0, 1), (1, 3), (4, 3)):
+        plan = schedule.plan([True] * count)
+        memory.begin(plan, 10, torch.device('cpu'))
+        tokens = leaf[..., start * 10:(start + count) * 10, :] * 2.0
+        total = total + memory.context(0).attend(tokens, tokens, tokens).sum()
+        memory.commit()
+        schedule.commit(plan)
+    total.backward()
+    assert leaf.grad is not None and torch.isfinite(leaf.grad).all()
+    assert leaf.grad[..., :10, :].abs().sum() > 0  # the anchor's keys were attended later
 
 
 def test_non_keyframes_attend_without_being_stored() -> None:
