@@ -19,3 +19,11 @@ class CheckpointError(InfiniHandError):
 
 class BagError(InfiniHandError):
     """A rosbag that is missing, corrupt or lacks a required topic."""
+
+
+class ModelOutputError(InfiniHandError):
+    """The network gave non-finite outputs: its weights (the checkpoint) are at fault, not the input."""
+
+
+class EngineStateError(InfiniHandError, RuntimeError):
+    """The engine was used out of its contract (after ``close()``, from two threads at once)."""

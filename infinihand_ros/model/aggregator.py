@@ -83,8 +83,8 @@ class Aggregator(nn.Module):
         Args:
             images: (B, S, 3, H, W) RGB in [0, 1]; H and W multiples of the patch size.
             plan: the block's plan from the stream's ``FrameSchedule`` (S frames).
-            memory: the global blocks' memory (``depth`` layers); ``begin``/``commit`` are
-                called here.
+            memory: the global blocks' memory (``depth`` layers); ``begin`` is called here,
+                ``commit`` by the caller once the block's outputs are accepted.
 
         Returns:
             The selected layers' tokens (see ``AggregatorOutput``).
@@ -108,7 +108,6 @@ class Aggregator(nn.Module):
             if index in selected:
                 outputs[index] = (torch.cat((frame_out, tokens), dim=-1)
                                   .reshape(batch, frames, per_frame, -1))
-        memory.commit()
         return AggregatorOutput(tuple(outputs[index] for index in self.config.selected_layers),
                                 self.patch_start, grid)
 

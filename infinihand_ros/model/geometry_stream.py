@@ -5,13 +5,15 @@ RGB in [0, 1] and returns a ``GeometryOutput`` for every frame of the call. The 
 ``memory.anchor_frames`` frames of a sequence are anchors (stored whatever their flag; pass them
 in one call to match the paper, which processes them together). Later frames are stored when
 their keyframe flag is set. A window of frames in one call gives the same outputs as its frames
-one by one (causal attention). ``reset()`` starts a new sequence.
+one by one (causal attention). ``reset()`` starts a new sequence. A block whose outputs are not
+finite is not committed: ``step`` raises ``ModelOutputError`` and the stream stays as it was.
 """
 
 from collections.abc import Sequence
 from dataclasses import fields
 
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.model.geometry_model import GeometryModel
 from infinihand_ros.model.geometry_model import GeometryOutput
 from infinihand_ros.model.streaming_memory import FrameSchedule
@@ -31,6 +33,15 @@ def _concat_outputs(first: GeometryOutput, second: GeometryOutput) -> GeometryOu
         else:
             values[item.name] = a
     return GeometryOutput(**values)
+
+
+def _check_finite(output: GeometryOutput) -> None:
+    """Raise ModelOutputError naming the first output with NaN or infinite values."""
+    for name in ('pose_encoding', 'depth', 'depth_conf', 'hand_masks', 'patch_features'):
+        if not bool(torch.isfinite(getattr(output, name)).all()):
+            raise ModelOutputError(f'geometry branch: its {name} output is not finite; the '
+                                   'weights are broken (check the checkpoint), the frame was '
+                                   'not added to the stream')
 
 
 class GeometryStream:
@@ -72,7 +83,15 @@ class GeometryStream:
             head = self.step(images[:, :remaining], flags[:remaining])
             return _concat_outputs(head, self.step(images[:, remaining:], flags[remaining:]))
         plan = self.schedule.plan(flags)
-        output = self.model(images, plan, self.aggregator_memory, self.camera_memory)
+        try:
+            output = self.model(images, plan, self.aggregator_memory, self.camera_memory)
+            _check_finite(output)
+        except BaseException:
+            for memory in self.memories:
+                memory.abort()
+            raise
+        for memory in self.memories:
+            memory.commit()
         self.schedule.commit(plan)
         return output
 

@@ -27,8 +27,11 @@ Storage does not grow with the stream: each layer owns one preallocated buffer l
 rings written in place, so a steady-state frame allocates nothing that depends on the stream's
 length, and the keys a frame attends to are one contiguous slice of the buffer (attention does
 not depend on key order). Capacities grow (rarely: the first anchors, the first long block, an
-unbounded window or trajectory) by reallocating with doubling. While autograd records (training),
-writes go to a copy of the buffer instead, so tensors saved for backward are never overwritten.
+unbounded window or trajectory) by reallocating with doubling. A block's keys/values go to the
+scratch during attention and into their slots only at ``commit()``, so a block that is not
+committed (``abort()``, e.g. after a non-finite output) leaves the memory exactly as it was.
+While autograd records (training), writes go to a copy of the buffer instead, so tensors saved
+for backward are never overwritten.
 """
 
 from collections.abc import Sequence
@@ -188,12 +191,11 @@ class _Ring:
 
 
 @dataclass(frozen=True)
-class _Write:
-    """One copy inside every layer's buffer, or a copy of the current block into it."""
+class _Copy:
+    """One copy of tokens inside a layer buffer (source and target token ranges)."""
 
-    source: slice | None  # None: from the current keys/values (``block_frame``)
+    source: slice
     target: slice
-    block_frame: int = 0
 
 
 class _LayerContext:
@@ -213,7 +215,8 @@ class KVMemory:
     """Per-layer key/value cache with the anchor / window / trajectory policy.
 
     Use per block: ``begin(plan, P)``, then each layer attends through ``context(layer)``, then
-    ``commit()`` stores the block's keys/values and evicts frames beyond the window.
+    ``commit()`` stores the block's keys/values and evicts frames beyond the window (or
+    ``abort()`` forgets the block).
     """
 
     def __init__(self, num_layers: int, window: int | None, special_tokens: int,
@@ -254,7 +257,7 @@ class KVMemory:
         self._window = _Ring([], self.window)
         self._trajectory = _Ring([], self.max_trajectory_frames)
         self._plan: BlockPlan | None = None
-        self._writes: list[_Write] = []
+        self._attended: list[bool] = []
         self._key_range = slice(0, 0)
         self._frame_masks: list[torch.Tensor | None] = []
         self.tokens_per_frame = 0
@@ -290,7 +293,13 @@ class KVMemory:
         self.tokens_per_frame = tokens_per_frame
         self._plan = plan
         self._layout(plan, tokens_per_frame)
-        self._writes, self._key_range, self._frame_masks = self._schedule(plan, device)
+        block_start = self._scratch.end - plan.num_frames * tokens_per_frame
+        if plan.is_anchor:
+            self._key_range = slice(block_start, self._anchors.slot(self._anchor_count).start)
+            self._frame_masks = []
+        else:
+            self._key_range = slice(block_start, self._cache_end())
+            self._frame_masks = self._block_masks(plan, device)
         self._attended = [False] * self.num_layers
 
     def context(self, layer: int) -> _LayerContext:
@@ -301,22 +310,15 @@ class KVMemory:
 
     def attend(self, layer: int, query: torch.Tensor, key: torch.Tensor, value: torch.Tensor
                ) -> torch.Tensor:
-        """Store the block's keys/values of ``layer`` as planned and attend over the cache."""
+        """Put the block's keys/values of ``layer`` in the scratch and attend over the cache."""
         if self._plan is None:
             raise RuntimeError('KVMemory.attend called before begin(plan, ...)')
-        data = self._buffer(layer, key, value)
-        current = torch.stack((key, value))
-        for write in self._writes:
-            if write.source is None:
-                per_frame = self.tokens_per_frame
-                tokens = current[..., write.block_frame * per_frame:
-                                 (write.block_frame + 1) * per_frame, :]
-            else:
-                tokens = data[..., write.source, :]
-            data = self._write(layer, data, write.target, tokens)
+        data = self._buffer(layer, key)
+        data = self._write(layer, data, slice(self._key_range.start, self._scratch.end),
+                           torch.stack((key, value)))
         self._attended[layer] = True
         keys, values = data[0, ..., self._key_range, :], data[1, ..., self._key_range, :]
-        if not self._frame_masks:
+        if all(mask is None for mask in self._frame_masks):
             return F.scaled_dot_product_attention(query, keys, values)
         per_frame = self.tokens_per_frame
         outputs = []
@@ -327,27 +329,31 @@ class KVMemory:
         return torch.cat(outputs, dim=-2)
 
     def commit(self) -> None:
-        """Store the current block (multi-frame blocks) and advance the window bookkeeping."""
+        """Store the current block's stored frames, evicting beyond the window, frame by frame."""
         plan = self._plan
         if plan is None:
             raise RuntimeError('KVMemory.commit called before begin(plan, ...)')
         if not all(self._attended):
             raise RuntimeError('KVMemory.commit: a layer did not attend during the block')
+        copies = self._commit_copies(plan)
+        for layer in range(self.num_layers):
+            data = self._data[layer]
+            for copy in copies:
+                data = self._write(layer, data, copy.target, data[..., copy.source, :])
         if plan.is_anchor:
             self._anchor_count += plan.num_frames
-        elif plan.num_frames == 1:
-            if plan.stored[0]:
-                self._store_keyframe(plan.keyframes_before[0])
         else:
-            for layer in range(self.num_layers):
-                data = self._data[layer]
-                for write in self._block_commit_writes(plan):
-                    data = self._write(layer, data, write.target, data[..., write.source, :])
             for order, stored in zip(plan.keyframes_before, plan.stored):
                 if stored:
-                    self._store_keyframe(order)
+                    if self._window.full:
+                        self._trajectory.put(self._window.orders[self._window.oldest()])
+                    self._window.put(order)
+        self.abort()
+
+    def abort(self) -> None:
+        """Forget the current block without storing it (the memory stays as before ``begin``)."""
         self._plan = None
-        self._writes, self._frame_masks = [], []
+        self._frame_masks = []
 
     # Layout and storage.
 
@@ -355,11 +361,10 @@ class KVMemory:
         """Grow the regions the block needs (rare: reallocates and keeps the cached tokens)."""
         special = min(self.special_tokens, per_frame)
         count = plan.num_frames
-        scratch = count if not plan.is_anchor and count > 1 else (0 if plan.is_anchor else 1)
         anchors = self._anchor_count + count if plan.is_anchor else self._anchor_count
         window = self._window.filled + (0 if plan.is_anchor else sum(plan.stored))
         trajectory = self._trajectory.filled + max(0, window - (self.window or window))
-        needed = (max(scratch, self._scratch.capacity), max(anchors, self._anchors.capacity),
+        needed = (max(count, self._scratch.capacity), max(anchors, self._anchors.capacity),
                   self._capped(window, self._window_slots.capacity, self.window),
                   self._capped(trajectory, self._trajectory_slots.capacity,
                                self.max_trajectory_frames))
@@ -398,7 +403,7 @@ class KVMemory:
                 data[..., before.start:before.end, :]
         return moved
 
-    def _buffer(self, layer: int, key: torch.Tensor, value: torch.Tensor) -> torch.Tensor:
+    def _buffer(self, layer: int, key: torch.Tensor) -> torch.Tensor:
         """Return the layer's buffer, allocated on first use with the keys' shape and dtype."""
         data = self._data[layer]
         if data is None:
@@ -408,7 +413,6 @@ class KVMemory:
             raise ValueError(f'KVMemory: keys of batch/heads {tuple(key.shape[:2])} and '
                              f'{key.dtype} after a sequence started with '
                              f'{tuple(data.shape[1:3])} and {data.dtype}; reset() first')
-        del value
         return data
 
     def _write(self, layer: int, data: torch.Tensor, target: slice, tokens: torch.Tensor
@@ -422,123 +426,75 @@ class KVMemory:
 
     # Planning.
 
-    def _schedule(self, plan: BlockPlan, device: torch.device
-                  ) -> tuple[list[_Write], slice, list[torch.Tensor | None]]:
-        """Return the block's writes before attention, its key range and per-frame masks."""
-        count, per_frame = plan.num_frames, self.tokens_per_frame
-        cache_end = self._cache_end()
-        if plan.is_anchor:
-            first = self._anchors.slot(self._anchor_count).start
-            writes = [_Write(None, self._anchors.slot(self._anchor_count + frame), frame)
-                      for frame in range(count)]
-            return writes, slice(self._anchors.start, first + count * per_frame), []
-        if count == 1 and plan.stored[0]:
-            return self._keyframe_writes(), slice(self._anchors.start, self._cache_end(1)), []
-        block_start = self._scratch.end - count * per_frame
-        writes = [_Write(None, slice(block_start + frame * per_frame,
-                                     block_start + (frame + 1) * per_frame), frame)
-                  for frame in range(count)]
-        if count == 1:
-            return writes, slice(block_start, cache_end), []
-        return writes, slice(block_start, cache_end), self._block_masks(plan, device)
-
-    def _cache_end(self, new_keyframes: int = 0) -> int:
-        """Return the end of the filled cache (after ``new_keyframes`` more are stored)."""
-        window = self._window.filled + new_keyframes
-        if self.window is not None and window > self.window:
-            evicted = window - self.window
-            trajectory = self._trajectory.filled + evicted
-            if self.max_trajectory_frames is not None:
-                trajectory = min(trajectory, self.max_trajectory_frames)
-            return self._trajectory_slots.start + trajectory * self._trajectory_slots.tokens
+    def _cache_end(self) -> int:
+        """Return the end of the filled cache (window, then trajectory, both filled in order)."""
         if self._trajectory.filled:
             return self._trajectory_slots.start + self._trajectory.filled \
                 * self._trajectory_slots.tokens
-        return self._window_slots.start + window * self._window_slots.tokens
+        return self._window_slots.start + self._window.filled * self._window_slots.tokens
 
-    def _keyframe_writes(self) -> list[_Write]:
-        """Return the writes storing one keyframe now: evict the oldest, then take its slot."""
-        writes = []
-        if self._window.full:
-            slot = self._window.oldest()
-            evicted = self._window_slots.slot(slot)
-            special = self._trajectory_slots.tokens
-            writes.append(_Write(slice(evicted.start, evicted.start + special),
-                                 self._trajectory_slots.slot(self._trajectory.target())))
-            writes.append(_Write(None, self._window_slots.slot(slot), 0))
-        else:
-            writes.append(_Write(None, self._window_slots.slot(self._window.filled), 0))
-        return writes
-
-    def _block_commit_writes(self, plan: BlockPlan) -> list[_Write]:
-        """Return the copies from the scratch into window/trajectory slots, frame by frame."""
+    def _commit_copies(self, plan: BlockPlan) -> list[_Copy]:
+        """Return the copies from the scratch into anchor/window/trajectory slots, in order."""
         per_frame = self.tokens_per_frame
         block_start = self._scratch.end - plan.num_frames * per_frame
+
+        def frame_tokens(frame: int) -> slice:
+            return slice(block_start + frame * per_frame, block_start + (frame + 1) * per_frame)
+
+        if plan.is_anchor:
+            return [_Copy(frame_tokens(frame), self._anchors.slot(self._anchor_count + frame))
+                    for frame in range(plan.num_frames)]
         window = _Ring(list(self._window.orders), self.window, self._window.next_slot)
         trajectory = _Ring(list(self._trajectory.orders), self.max_trajectory_frames,
                            self._trajectory.next_slot)
-        writes = []
         special = self._trajectory_slots.tokens
+        copies = []
         for frame, (order, stored) in enumerate(zip(plan.keyframes_before, plan.stored)):
             if not stored:
                 continue
             if window.full:
-                evicted = self._window_slots.slot(window.oldest())
-                target = self._trajectory_slots.slot(trajectory.put(window.orders[
-                    window.oldest()]))
-                writes.append(_Write(slice(evicted.start, evicted.start + special), target))
-            slot = window.put(order)
-            source = block_start + frame * per_frame
-            writes.append(_Write(slice(source, source + per_frame),
-                                 self._window_slots.slot(slot)))
-        return writes
-
-    def _store_keyframe(self, order: int) -> None:
-        """Advance the window and trajectory bookkeeping by one stored keyframe."""
-        if self._window.full:
-            self._trajectory.put(self._window.orders[self._window.oldest()])
-        self._window.put(order)
+                oldest = window.oldest()
+                evicted = self._window_slots.slot(oldest)
+                target = self._trajectory_slots.slot(trajectory.put(window.orders[oldest]))
+                copies.append(_Copy(slice(evicted.start, evicted.start + special), target))
+            copies.append(_Copy(frame_tokens(frame), self._window_slots.slot(window.put(order))))
+        return copies
 
     def _block_masks(self, plan: BlockPlan, device: torch.device) -> list[torch.Tensor | None]:
-        """Return per block frame the (L,) key visibility reproducing frame-by-frame streaming.
+        """Return per block frame the (1, L) key visibility (None: all visible).
 
-        Frame j, after which ``K_j`` keyframes are stored, sees a keyframe of order ``o`` in
-        full when ``o >= K_j - window``, only its special tokens when it has been evicted but
-        is among the newest ``max_trajectory_frames`` evicted, and nothing otherwise; anchors
-        always, later or unstored block frames never, itself in full.
+        This reproduces frame-by-frame streaming: frame j, after whose turn ``K_j`` keyframes
+        are stored, sees a keyframe of order ``o`` in full when ``o >= K_j - window``, only its
+        special tokens when it has been evicted but is among the newest
+        ``max_trajectory_frames`` evicted, and nothing otherwise; anchors always, later or
+        unstored block frames never, itself in full.
         """
         count, per_frame = plan.num_frames, self.tokens_per_frame
         special = self._trajectory_slots.tokens
         orders = torch.tensor(plan.keyframes_before, dtype=torch.long, device=device)
         stored = torch.tensor(plan.stored, dtype=torch.bool, device=device)
-        after = orders + stored.long()  # K_j
-        lowest_full = after - (self.window if self.window is not None else 10 ** 12)
-        lowest_special = (lowest_full - self.max_trajectory_frames
-                          if self.max_trajectory_frames is not None
-                          else torch.full_like(after, -10 ** 12))
+        after = orders + stored.long()
+        unbounded = torch.full_like(after, torch.iinfo(torch.long).min // 2)
+        lowest_full = unbounded if self.window is None else after - self.window
+        lowest_special = (unbounded if self.max_trajectory_frames is None
+                          else lowest_full - self.max_trajectory_frames)
 
-        def codes_for(slot_orders: torch.Tensor) -> torch.Tensor:
+        def codes_for(slot_orders: list[int] | torch.Tensor) -> torch.Tensor:
+            slot_orders = torch.as_tensor(slot_orders, dtype=torch.long, device=device)
             full = slot_orders[None] >= lowest_full[:, None]
             kept = slot_orders[None] >= lowest_special[:, None]
             return torch.where(full, _FULL, torch.where(kept, _SPECIAL, _NONE))
 
         index = torch.arange(count, device=device)
-        block_codes = codes_for(orders)
-        block_codes = torch.where((index[None] < index[:, None]) & stored[None], block_codes,
-                                  _NONE)
+        block_codes = torch.where((index[None] < index[:, None]) & stored[None],
+                                  codes_for(orders), _NONE)
         block_codes[index, index] = _FULL
-        window_codes = codes_for(torch.tensor(self._window.orders, dtype=torch.long,
-                                              device=device))
+        codes = torch.cat((block_codes, codes_for(self._window.orders)), dim=1)[..., None]
         is_special = torch.arange(per_frame, device=device) < special
-        frame_visible = torch.cat((block_codes, window_codes), dim=1)[..., None]
-        frame_visible = ((frame_visible == _FULL)
-                         | ((frame_visible == _SPECIAL) & is_special)).flatten(1)
-        block_part, window_part = frame_visible.split(
-            (count * per_frame, self._window.filled * per_frame), dim=1)
-        trajectory_codes = codes_for(torch.tensor(self._trajectory.orders, dtype=torch.long,
-                                                  device=device))
-        trajectory_part = (trajectory_codes != _NONE).repeat_interleave(special, dim=1)
+        frames = ((codes == _FULL) | ((codes == _SPECIAL) & is_special)).flatten(1)
+        trajectory = (codes_for(self._trajectory.orders) != _NONE).repeat_interleave(special, 1)
         anchors = torch.ones(count, self._anchor_count * per_frame, dtype=torch.bool,
                              device=device)
-        visible = torch.cat((block_part, anchors, window_part, trajectory_part), dim=1)
+        block, window = frames.split((count * per_frame, frames.shape[1] - count * per_frame), 1)
+        visible = torch.cat((block, anchors, window, trajectory), dim=1)
         return [None if bool(row.all()) else row[None] for row in visible]

@@ -1,6 +1,7 @@
 """Tests of model/streaming_memory.py: schedule, cache sizes, block == frame-by-frame."""
 
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.model.geometry_model import GeometryModel
 from infinihand_ros.model.geometry_stream import GeometryStream
 from infinihand_ros.model.streaming_memory import FrameSchedule
@@ -140,7 +141,7 @@ def test_frames_attended_per_step_for_window_w(monkeypatch) -> None:
     seen = []
 
     def spy(query, key, value, attn_mask=None):
-        seen.append(key.shape[-2])
+        seen.append(key.shape[-2] if attn_mask is None else int(attn_mask.sum()))
         return torch.zeros_like(query)
 
     monkeypatch.setattr('infinihand_ros.model.streaming_memory.F.scaled_dot_product_attention',
@@ -288,3 +289,24 @@ def test_camera_head_cache_grows_by_one_token_per_stored_frame(micro_model, rng)
     camera_memory = stream.camera_memory
     assert [camera_memory.cached_tokens(layer) for layer in range(camera_memory.num_layers)] \
         == [2 + 4] * camera_memory.num_layers
+
+
+def test_a_non_finite_block_leaves_the_stream_as_it_was(micro_model: GeometryModel, rng) -> None:
+    """NaN weights raise ModelOutputError; after restoring them the stream goes on unchanged."""
+    frames = _frames(rng, 4)
+    broken, clean = GeometryStream(micro_model), GeometryStream(micro_model)
+    with torch.no_grad():
+        for stream in (broken, clean):
+            stream.step(frames[:, :2])
+            stream.step(frames[:, 2:3])
+        tokens_before = broken.aggregator_memory.cached_tokens(0)
+        weight = micro_model.aggregator.frame_blocks[0].attn.qkv.weight  # poisons the cache
+        saved = weight.clone()
+        weight.fill_(float('nan'))
+        with pytest.raises(ModelOutputError, match='check the checkpoint'):
+            broken.step(frames[:, 3:4])
+        weight.copy_(saved)
+        assert broken.aggregator_memory.cached_tokens(0) == tokens_before
+        assert broken.schedule.frames_seen == 3
+        torch.testing.assert_close(broken.step(frames[:, 3:4]).pose_encoding,
+                                   clean.step(frames[:, 3:4]).pose_encoding)

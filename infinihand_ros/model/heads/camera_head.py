@@ -51,8 +51,8 @@ class CameraHead(nn.Module):
         Args:
             tokens: (B, S, P, C) last selected aggregator layer; the camera token is index 0.
             plan: the block's plan (S frames).
-            memory: ``memory_layers``-layer memory with ``window=None``; ``begin``/``commit``
-                are called here.
+            memory: ``memory_layers``-layer memory with ``window=None``; ``begin`` is called
+                here, ``commit`` by the caller once the block's outputs are accepted.
 
         """
         camera = self.token_norm(tokens[:, :, 0])
@@ -70,5 +70,4 @@ class CameraHead(nn.Module):
             delta = self.pose_branch(self.trunk_norm(x))
             raw = delta if raw is None else raw + delta
             encodings.append(activate_pose(raw))
-        memory.commit()
         return encodings
