@@ -2,9 +2,10 @@
 
 Until the estimator node and trained weights land, the demo reads the bundled sample bag,
 regenerates its sequence with the synthetic generator (bag, training samples, previews) into
-``--out``, checks that the fresh ground truth equals the bag's, and streams the bag's frames
-through the engine with the untrained tiny model (so only its speed and output shapes mean
-something). It prints what it read, the generation and engine speeds and where the previews are.
+``--out`` (replacing only an empty directory or an earlier demo output), checks that the fresh
+ground truth equals the bag's, and streams the bag's frames through the engine with the
+untrained tiny model (so only its speed and output shapes mean something). It prints what it
+read, the generation and engine speeds and where the previews are.
 """
 
 import argparse
@@ -20,6 +21,7 @@ from infinihand_ros.bag.reader import BagReader
 from infinihand_ros.core import geometry
 from infinihand_ros.core import topics
 from infinihand_ros.core.atomic_io import atomic_directory
+from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
@@ -32,6 +34,10 @@ import numpy as np
 #: Largest ground-truth difference (m) between the bag and a fresh generation that still counts
 #: as the same sequence (the bag stores float64, so this is rounding only).
 SAME_SEQUENCE_TOLERANCE_M: Final = 1e-9
+
+#: File the demo writes into its output directory; only a directory holding it (or an empty or
+#: missing one) is replaced by a later run, so the demo never deletes what it did not write.
+OUTPUT_MARKER: Final = '.infinihand_demo'
 
 
 def read_ground_truth(bag: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -82,8 +88,26 @@ def run_engine(bag: Path) -> str:
             f'frames/s, {hands} hand detections (meaningless until trained weights exist)')
 
 
+def validate_out(out: Path) -> None:
+    """Check that ``out`` is missing, an empty directory or an earlier demo output.
+
+    Raises:
+        InfiniHandError: naming ``out`` when it is a file, holds files the demo did not write
+            (no ``OUTPUT_MARKER``) or cannot be created.
+
+    """
+    if out.exists() and not out.is_dir():
+        raise InfiniHandError(f'--out {out} is a file, not a directory; choose another path')
+    if out.is_dir() and any(out.iterdir()) and not (out / OUTPUT_MARKER).is_file():
+        raise InfiniHandError(f'--out {out} holds files the demo did not write (no '
+                              f'{OUTPUT_MARKER} marker) and would be replaced; choose another '
+                              'path or empty it yourself')
+    check_writable_location(out, '--out')
+
+
 def run(out: Path, bag: Path) -> str:
-    """Run the demo; return the report it prints."""
+    """Run the demo into ``out`` (checked by ``validate_out``); return the report it prints."""
+    validate_out(out)
     settings = load_sample_settings()
     report = ['Embedded sample bag:', describe_bag(bag)]
     cameras, wrists, visible = read_ground_truth(bag)
@@ -91,6 +115,8 @@ def run(out: Path, bag: Path) -> str:
         summary = cli.generate(settings.synth, settings.spec.seed, settings.spec.frames, work,
                                settings.bag)
         fresh_cameras, fresh_wrists, _ = read_ground_truth(work / cli.BAG_DIR)
+        (work / OUTPUT_MARKER).write_text('Written by python -m infinihand_ros.demo, which '
+                                          'replaces this directory on its next run.\n')
     if fresh_cameras.shape != cameras.shape:
         raise InfiniHandError(f'{bag} holds {len(cameras)} frames but its settings give '
                               f'{len(fresh_cameras)}; regenerate it with '
@@ -124,13 +150,17 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog='python -m infinihand_ros.demo',
                                      description=__doc__.splitlines()[0])
     parser.add_argument('--out', type=Path, default=Path('out/demo'),
-                        help='output directory (replaced atomically; default out/demo)')
+                        help='output directory: new, empty or an earlier demo output '
+                             '(replaced atomically; default out/demo)')
     args = parser.parse_args(argv)
     try:
         print(run(args.out, sample_bag_path()))
     except InfiniHandError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
+    except OSError as exc:  # e.g. the disk filled up while writing
+        print(f'error: writing --out {args.out} failed: {exc}', file=sys.stderr)
+        return 1
     return 0
 
 

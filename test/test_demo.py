@@ -11,6 +11,7 @@ import pytest
 def test_demo_regenerates_the_sample_bag(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / 'demo'
     out.mkdir()
+    (out / demo.OUTPUT_MARKER).write_text('an earlier demo run')
     (out / 'stale.txt').write_text('from an earlier run')
     assert demo.main(['--out', str(out)]) == 0
     report = capsys.readouterr().out
@@ -18,5 +19,38 @@ def test_demo_regenerates_the_sample_bag(tmp_path: Path, capsys: pytest.CaptureF
     assert '150 x infinihand_msgs/msg/HandFrame' in report
     assert '150 results for 150 frames' in report
     assert not (out / 'stale.txt').exists()
+    assert (out / demo.OUTPUT_MARKER).is_file()
     for name in (cli.FRAMES_PREVIEW, cli.TRAJECTORY_PREVIEW, cli.RESOLVED_CONFIG):
         assert (out / name).stat().st_size > 0
+    assert [p.name for p in tmp_path.iterdir()] == ['demo']
+
+
+def test_demo_refuses_a_directory_it_did_not_write(tmp_path: Path,
+                                                   capsys: pytest.CaptureFixture) -> None:
+    out = tmp_path / 'mine'
+    out.mkdir()
+    (out / 'thesis.tex').write_text('keep me')
+    assert demo.main(['--out', str(out)]) == 2
+    error = capsys.readouterr().err
+    assert error == (f'error: --out {out} holds files the demo did not write (no '
+                     '.infinihand_demo marker) and would be replaced; choose another path or '
+                     'empty it yourself\n')
+    assert [p.name for p in out.iterdir()] == ['thesis.tex']
+    assert (out / 'thesis.tex').read_text() == 'keep me'
+
+
+@pytest.mark.parametrize(('out', 'message'), [
+    ('FILE', 'FILE is a file, not a directory'),
+    ('FILE/demo', 'FILE is not a directory'),
+    ('/proc/infinihand_demo_out', 'cannot create anything in /proc'),
+])
+def test_demo_refuses_an_unusable_output_path(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                              out: str, message: str) -> None:
+    file = tmp_path / 'a_file'
+    file.write_text('not a directory')
+    out, message = out.replace('FILE', str(file)), message.replace('FILE', str(file))
+    assert demo.main(['--out', out]) == 2
+    error = capsys.readouterr().err
+    assert error.startswith(f'error: --out {out}') and error.count('\n') == 1
+    assert message in error
+    assert file.read_text() == 'not a directory'

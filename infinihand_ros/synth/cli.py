@@ -22,6 +22,7 @@ from typing import Final
 
 import cv2
 from infinihand_ros.core.atomic_io import atomic_write_bytes
+from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import load_config
 from infinihand_ros.core.errors import InfiniHandError
@@ -90,6 +91,7 @@ def validate_args(args: argparse.Namespace) -> tuple[SynthConfig, BagOptions]:
     if args.out.exists() and (not args.out.is_dir() or any(args.out.iterdir())):
         raise InfiniHandError(f'--out {args.out} exists and is not an empty directory; '
                               'choose a new path')
+    check_writable_location(args.out, '--out')
     path = args.config or config_dir() / 'synth.yaml'
     config = load_config(path, 'synth', SynthConfig)
     bag_options = load_config(path, 'bag', BagOptions)
@@ -150,6 +152,9 @@ def main(argv: list[str] | None = None) -> int:
     except InfiniHandError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2
+    except OSError as exc:  # e.g. the disk filled up while writing
+        print(f'error: writing --out {args.out} failed: {exc}', file=sys.stderr)
+        return 1
     print(f"wrote {summary['frames']} frames to {summary['out']} in {summary['seconds']:.1f} s "
           f"({summary['fps']:.1f} frames/s)")
     return 0

@@ -27,6 +27,34 @@ def test_bad_arguments_get_one_line_errors(tmp_path: Path, capsys: pytest.Captur
     assert not (tmp_path / 'out').exists()
 
 
+@pytest.mark.parametrize(('out', 'message'), [
+    ('/proc/infinihand_synth_out', 'cannot create anything in /proc'),
+    ('FILE/out', 'FILE is not a directory'),
+])
+def test_unwritable_output_gets_a_one_line_error(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                                 out: str, message: str) -> None:
+    file = tmp_path / 'a_file'
+    file.write_text('not a directory')
+    out, message = out.replace('FILE', str(file)), message.replace('FILE', str(file))
+    assert cli.main(['--out', out] + SMALL) == 2
+    error = capsys.readouterr().err
+    assert error.startswith(f'error: --out {out}: ') and error.count('\n') == 1
+    assert message in error
+    assert file.read_text() == 'not a directory'
+
+
+def test_write_failure_during_generation_gets_a_one_line_error(
+        tmp_path: Path, capsys: pytest.CaptureFixture, monkeypatch: pytest.MonkeyPatch) -> None:
+    def full_disk(*args: object, **kwargs: object) -> dict:
+        raise OSError(28, 'No space left on device')
+
+    monkeypatch.setattr(cli, 'generate', full_disk)
+    assert cli.main(['--out', str(tmp_path / 'out')] + SMALL) == 1
+    error = capsys.readouterr().err
+    assert error.startswith(f"error: writing --out {tmp_path / 'out'} failed: ")
+    assert 'No space left on device' in error and error.count('\n') == 1
+
+
 def test_unknown_choice_is_rejected_by_argparse(tmp_path: Path,
                                                 capsys: pytest.CaptureFixture) -> None:
     with pytest.raises(SystemExit) as exit_info:
