@@ -1,11 +1,38 @@
-"""Configuration of the bundle-adjustment components (``config/ba.yaml``)."""
+"""Configuration of the bundle-adjustment components (``config/ba.yaml``).
 
+Each config refuses at construction (so at load, naming the key such as
+``ba.tracking.klt_window_px``) the values that would make every BA call fail: NaN or infinite
+numbers, counts and thresholds outside the ranges OpenCV and the solver accept.
+"""
+
+import dataclasses
 from dataclasses import dataclass
 from dataclasses import field
 from pathlib import Path
+from typing import Final
 
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import load_config
+from infinihand_ros.core.config import require_at_least
+from infinihand_ros.core.config import require_finite
+from infinihand_ros.core.config import require_positive
+from infinihand_ros.core.errors import ConfigError
+
+#: Top-level section of ``config/ba.yaml`` holding the ``BAConfig`` fields.
+BA_SECTION: Final = 'ba'
+#: Smallest KLT window side OpenCV's calcOpticalFlowPyrLK accepts (it asserts winSize > 2).
+MIN_KLT_WINDOW_PX: Final = 3
+#: Bits in an ORB descriptor: the largest meaningful Hamming distance.
+ORB_DESCRIPTOR_BITS: Final = 256
+#: Largest CPU niceness of the BA thread (Linux's lowest priority).
+MAX_NICENESS: Final = 19
+
+
+def _require_finite_fields(owner: str, config: object) -> None:
+    """Raise ConfigError naming the first float field of the dataclass ``config`` not finite."""
+    require_finite(owner, **{item.name: getattr(config, item.name)
+                             for item in dataclasses.fields(config)
+                             if isinstance(getattr(config, item.name), float)})
 
 
 @dataclass(frozen=True)
@@ -22,9 +49,8 @@ class PoolConfig:
     stride: int = 3
 
     def __post_init__(self) -> None:
-        if self.trigger < 1 or self.stride < 2:
-            raise ValueError(f'pool needs trigger >= 1 and stride >= 2, got trigger='
-                             f'{self.trigger}, stride={self.stride}')
+        require_at_least('ba.pool', 1, trigger=self.trigger)
+        require_at_least('ba.pool', 2, stride=self.stride)
 
 
 @dataclass(frozen=True)
@@ -57,17 +83,16 @@ class SolverConfig:
     min_inverse_depth: float = 1e-3
 
     def __post_init__(self) -> None:
-        if self.irls_iterations < 0 or self.max_iterations < 1:
-            raise ValueError(f'need irls_iterations >= 0 and max_iterations >= 1, got '
-                             f'{self.irls_iterations}, {self.max_iterations}')
-        positive = {'huber_px': self.huber_px, 'gate_px': self.gate_px,
-                    'depth_prior_rel_sigma': self.depth_prior_rel_sigma,
-                    'rel_pose_sigma_rad': self.rel_pose_sigma_rad,
-                    'initial_damping': self.initial_damping,
-                    'min_inverse_depth': self.min_inverse_depth}
-        bad = {name: value for name, value in positive.items() if value <= 0}
-        if bad:
-            raise ValueError(f'these solver settings must be positive: {bad}')
+        owner = 'ba.solver'
+        _require_finite_fields(owner, self)
+        require_at_least(owner, 0, irls_iterations=self.irls_iterations,
+                         min_relative_decrease=self.min_relative_decrease)
+        require_at_least(owner, 1, max_iterations=self.max_iterations)
+        require_positive(owner, huber_px=self.huber_px, gate_px=self.gate_px,
+                         depth_prior_rel_sigma=self.depth_prior_rel_sigma,
+                         rel_pose_sigma_rad=self.rel_pose_sigma_rad,
+                         initial_damping=self.initial_damping,
+                         min_inverse_depth=self.min_inverse_depth)
 
 
 @dataclass(frozen=True)
@@ -76,9 +101,9 @@ class TrackingConfig:
 
     Attributes:
         max_corners: corners detected per keyframe for KLT.
-        corner_quality: goodFeaturesToTrack quality level.
+        corner_quality: goodFeaturesToTrack quality level, in (0, 1).
         min_corner_distance_px: minimum distance between detected corners (px).
-        klt_window_px: KLT window side (px).
+        klt_window_px: KLT window side (px), at least ``MIN_KLT_WINDOW_PX``.
         klt_levels: KLT pyramid levels above the base image.
         klt_iterations: most LK iterations per pyramid level.
         klt_epsilon_px: LK stops at a level when its update is smaller than this (px).
@@ -86,7 +111,7 @@ class TrackingConfig:
         hand_margin_px: hand masks are dilated by this much before excluding pixels (px).
         ransac_threshold_px: fundamental-matrix RANSAC inlier threshold (px).
         orb_features: ORB keypoints per keyframe.
-        orb_max_hamming: largest Hamming distance of an accepted ORB match.
+        orb_max_hamming: largest Hamming distance of an accepted ORB match (0..256).
         orb_max_gap: ORB matches each keyframe to the selected keyframes 2..gap places older.
         min_depth_m: depths outside [min_depth_m, max_depth_m] give no track (m).
         max_depth_m: see min_depth_m.
@@ -110,15 +135,29 @@ class TrackingConfig:
     max_depth_m: float = 30.0
 
     def __post_init__(self) -> None:
-        if self.max_corners < 8 or self.orb_features < 8 or self.klt_levels < 0:
-            raise ValueError(f'need max_corners >= 8, orb_features >= 8, klt_levels >= 0, got '
-                             f'{self.max_corners}, {self.orb_features}, {self.klt_levels}')
-        if self.klt_iterations < 1 or self.klt_epsilon_px <= 0:
-            raise ValueError(f'need klt_iterations >= 1 and klt_epsilon_px > 0, got '
-                             f'{self.klt_iterations}, {self.klt_epsilon_px}')
-        if not 0.0 < self.min_depth_m < self.max_depth_m:
-            raise ValueError(f'need 0 < min_depth_m < max_depth_m, got {self.min_depth_m}, '
-                             f'{self.max_depth_m}')
+        owner = 'ba.tracking'
+        _require_finite_fields(owner, self)
+        require_at_least(owner, 8, max_corners=self.max_corners, orb_features=self.orb_features)
+        require_at_least(owner, MIN_KLT_WINDOW_PX, klt_window_px=self.klt_window_px)
+        require_at_least(owner, 1, klt_iterations=self.klt_iterations)
+        require_at_least(owner, 0, klt_levels=self.klt_levels, hand_margin_px=self.hand_margin_px,
+                         min_corner_distance_px=self.min_corner_distance_px,
+                         orb_max_hamming=self.orb_max_hamming, orb_max_gap=self.orb_max_gap)
+        require_positive(owner, klt_epsilon_px=self.klt_epsilon_px,
+                         fb_threshold_px=self.fb_threshold_px,
+                         ransac_threshold_px=self.ransac_threshold_px,
+                         min_depth_m=self.min_depth_m)
+        # goodFeaturesToTrack keeps corners strictly above quality x the best corner's score,
+        # so 1 (or more) finds none and 0 is refused by OpenCV.
+        if not 0.0 < self.corner_quality < 1.0:
+            raise ConfigError(f'{owner}.corner_quality: must be in (0, 1), got '
+                              f'{self.corner_quality!r}')
+        if self.orb_max_hamming > ORB_DESCRIPTOR_BITS:
+            raise ConfigError(f'{owner}.orb_max_hamming: must be <= {ORB_DESCRIPTOR_BITS} '
+                              f'(bits in an ORB descriptor), got {self.orb_max_hamming}')
+        if not self.min_depth_m < self.max_depth_m:
+            raise ConfigError(f'{owner}.max_depth_m: must be above min_depth_m '
+                              f'({self.min_depth_m}), got {self.max_depth_m}')
 
 
 @dataclass(frozen=True)
@@ -134,8 +173,8 @@ class CorrectionConfig:
     blend_s: float = 0.3
 
     def __post_init__(self) -> None:
-        if self.blend_s < 0:
-            raise ValueError(f'corrections need blend_s >= 0 s, got {self.blend_s}')
+        require_finite('ba.corrections', blend_s=self.blend_s)
+        require_at_least('ba.corrections', 0, blend_s=self.blend_s)
 
 
 @dataclass(frozen=True)
@@ -153,9 +192,10 @@ class WorkerConfig:
     max_queued_selections: int = 2
 
     def __post_init__(self) -> None:
-        if not 0 <= self.niceness <= 19 or self.max_queued_selections < 1:
-            raise ValueError(f'worker needs niceness in 0..19 and max_queued_selections >= 1, '
-                             f'got {self.niceness} and {self.max_queued_selections}')
+        if not 0 <= self.niceness <= MAX_NICENESS:
+            raise ConfigError(f'ba.worker.niceness: must be in 0..{MAX_NICENESS}, got '
+                              f'{self.niceness}')
+        require_at_least('ba.worker', 1, max_queued_selections=self.max_queued_selections)
 
 
 @dataclass(frozen=True)
@@ -171,4 +211,5 @@ class BAConfig:
 
 def load_ba_config(path: str | Path | None = None) -> BAConfig:
     """Load the ``ba`` section of ``path`` (default: the package's ``config/ba.yaml``)."""
-    return load_config(config_dir() / 'ba.yaml' if path is None else path, 'ba', BAConfig)
+    return load_config(config_dir() / 'ba.yaml' if path is None else path, BA_SECTION,
+                       BAConfig)

@@ -6,6 +6,8 @@ are camera-to-world (``T_world_cam``).
 
 from dataclasses import dataclass
 from dataclasses import field
+import math
+import numbers
 
 from infinihand_ros.core import geometry
 from infinihand_ros.core.errors import InputError
@@ -19,7 +21,13 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Intrinsics:
-    """Pinhole intrinsics of one image (pixels), principal point anywhere."""
+    """Pinhole intrinsics of one image (pixels), principal point anywhere.
+
+    Fields are coerced at construction: ``fx, fy, cx, cy`` to finite Python floats (from ints,
+    floats or numpy scalars) and ``width, height`` to Python ints (from integral values).
+    Strings, booleans, NaN, infinities, non-positive focal lengths and non-positive or
+    fractional sizes raise ``InputError`` naming the field.
+    """
 
     fx: float
     fy: float
@@ -29,31 +37,32 @@ class Intrinsics:
     height: int
 
     def __post_init__(self) -> None:
-        values = as_array([self.fx, self.fy, self.cx, self.cy],
-                          'intrinsics (fx, fy, cx, cy)', (4,))
-        if values[0] <= 0 or values[1] <= 0:
+        for name in ('fx', 'fy', 'cx', 'cy'):
+            object.__setattr__(self, name, _finite_float(getattr(self, name), name))
+        if self.fx <= 0 or self.fy <= 0:
             raise InputError(
                 f'intrinsics: focal lengths must be positive, got fx={self.fx}, fy={self.fy}')
-        if int(self.width) <= 0 or int(self.height) <= 0:
-            raise InputError(
-                f'intrinsics: image size must be positive, got {self.width}x{self.height}')
+        for name in ('width', 'height'):
+            object.__setattr__(self, name, _positive_int(getattr(self, name), name))
 
     @classmethod
     def from_matrix(cls, matrix: np.ndarray, width: int, height: int) -> 'Intrinsics':
         """Build from a 3x3 K and the image size in pixels."""
         k = as_array(matrix, 'intrinsics matrix K', (3, 3))
-        return cls(float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]),
-                   int(width), int(height))
+        return cls(float(k[0, 0]), float(k[1, 1]), float(k[0, 2]), float(k[1, 2]), width, height)
 
     @classmethod
     def from_fov(cls, fov_h_rad: float, fov_w_rad: float, width: int, height: int) -> 'Intrinsics':
         """Build from vertical/horizontal FoV (radians) with the principal point at the centre."""
+        fov_h_rad, fov_w_rad = _finite_float(fov_h_rad, 'fov_h_rad'), _finite_float(
+            fov_w_rad, 'fov_w_rad')
+        width, height = _positive_int(width, 'width'), _positive_int(height, 'height')
         if not (0.0 < fov_h_rad < np.pi and 0.0 < fov_w_rad < np.pi):
             raise InputError(
                 f'field of view must be in (0, pi) radians, got h={fov_h_rad}, w={fov_w_rad}')
         return cls(float(geometry.focal_from_fov(fov_w_rad, width)),
                    float(geometry.focal_from_fov(fov_h_rad, height)),
-                   width / 2.0, height / 2.0, int(width), int(height))
+                   width / 2.0, height / 2.0, width, height)
 
     def matrix(self) -> np.ndarray:
         """Return K as a float64 3x3 array."""
@@ -63,6 +72,28 @@ class Intrinsics:
         """Return (fov_h, fov_w) in radians, as in the model's pose encoding."""
         return (float(geometry.fov_from_focal(self.fy, self.height)),
                 float(geometry.fov_from_focal(self.fx, self.width)))
+
+
+def _finite_float(value: object, name: str) -> float:
+    """Return an intrinsics field as a finite float or raise InputError naming it."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+        raise InputError(f'intrinsics {name}: expected a number, got {value!r} '
+                         f'({type(value).__name__}); pass an int or float')
+    number = float(value)
+    if not math.isfinite(number):
+        raise InputError(f'intrinsics {name}: got {number}, which is NaN or infinite; '
+                         'pass a finite number')
+    return number
+
+
+def _positive_int(value: object, name: str) -> int:
+    """Return an image-size field as a positive int or raise InputError naming it."""
+    integral = isinstance(value, numbers.Integral) or (
+        isinstance(value, numbers.Real) and math.isfinite(value) and float(value).is_integer())
+    if isinstance(value, (bool, np.bool_)) or not integral or not int(value) > 0:
+        raise InputError(f'intrinsics {name}: image size must be a positive whole number of '
+                         f'pixels, got {value!r}')
+    return int(value)
 
 
 @dataclass(frozen=True)
@@ -203,6 +234,8 @@ class FrameResult:
         metric_scale: factor applied to the model's camera translations (1.0 when unknown).
         raw_camera_pose: the estimator's pose before bundle-adjustment corrections, when BA
             corrected ``camera_pose``; None otherwise.
+        pose_version: the engine's pose-track version ``camera_pose`` was computed with (it
+            changes whenever the metric scale or BA corrections change; 0 for the first).
 
     """
 
@@ -215,6 +248,7 @@ class FrameResult:
     depth: np.ndarray | None = None
     metric_scale: float = 1.0
     raw_camera_pose: CameraPose | None = None
+    pose_version: int = 0
 
     def __post_init__(self) -> None:
         sides = [hand.side for hand in self.hands]

@@ -29,6 +29,40 @@ def test_intrinsics_reject_bad_values(bad: dict) -> None:
         Intrinsics(**values)
 
 
+def test_intrinsics_coerce_numeric_fields() -> None:
+    intr = Intrinsics(np.float32(500.0), 500, np.int64(320), 240.5, np.int32(640), 480.0)
+    assert intr == Intrinsics(500.0, 500.0, 320.0, 240.5, 640, 480)
+    assert [type(value) for value in (intr.fx, intr.fy, intr.cx, intr.cy)] == [float] * 4
+    assert type(intr.width) is int and type(intr.height) is int
+    assert Intrinsics.from_matrix(intr.matrix(), np.int64(640), 480) == intr
+
+
+@pytest.mark.parametrize(('bad', 'message'), [
+    ({'fx': '500'}, r"intrinsics fx: expected a number, got '500' \(str\)"),
+    ({'cy': None}, r'intrinsics cy: expected a number, got None \(NoneType\)'),
+    ({'fy': True}, r'intrinsics fy: expected a number, got True \(bool\)'),
+    ({'cx': float('inf')}, 'intrinsics cx: got inf, which is NaN or infinite'),
+    ({'fy': np.nan}, 'intrinsics fy: got nan, which is NaN or infinite'),
+    ({'fy': 0}, 'focal lengths must be positive, got fx=500.0, fy=0.0'),
+    ({'width': 640.5}, 'intrinsics width: image size must be a positive whole number of pixels, '
+                       'got 640.5'),
+    ({'height': -2}, 'intrinsics height: .* got -2'),
+    ({'height': '480'}, "intrinsics height: .* got '480'"),
+    ({'width': float('nan')}, 'intrinsics width: .* got nan'),
+])
+def test_intrinsics_name_the_bad_field(bad: dict, message: str) -> None:
+    values = {'fx': 500.0, 'fy': 500.0, 'cx': 10.0, 'cy': 10.0, 'width': 640, 'height': 480}
+    with pytest.raises(InputError, match=message):
+        Intrinsics(**(values | bad))
+
+
+def test_intrinsics_from_fov_checks_its_arguments() -> None:
+    with pytest.raises(InputError, match="intrinsics fov_h_rad: expected a number, got '1'"):
+        Intrinsics.from_fov('1', 1.0, 64, 48)
+    with pytest.raises(InputError, match='intrinsics width: .* got 64.5'):
+        Intrinsics.from_fov(1.0, 1.0, 64.5, 48)
+
+
 def test_camera_pose_maps_points_and_quaternion(rng: np.random.Generator) -> None:
     rotation = geometry.axis_angle_to_matrix(rng.normal(size=3))
     pose = CameraPose(rotation, [1.0, 2.0, 3.0])
