@@ -12,10 +12,18 @@ from pathlib import Path
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import load_config
 from infinihand_ros.core.config import require_positive
+from infinihand_ros.model.pose_encoding import CAM_TO_WORLD
+from infinihand_ros.model.pose_encoding import check_pose_direction
 
 PATCH_EMBED_KINDS = ('conv', 'dinov2')
 GLOBAL_ROPE_KINDS = ('video3d', 'spatial2d')
 GEOMETRY_SECTION = 'geometry'
+#: How frames are fitted to the model input (``GeometryConfig.preprocessing``; implemented in
+#: ``engine/frame_input.py``): LingBot-Map/VGGT's resize-and-crop or resize-and-pad, or ours.
+RESIZE_CROP = 'resize_crop'
+RESIZE_PAD = 'resize_pad'
+LETTERBOX = 'letterbox'
+PREPROCESSING_MODES = (RESIZE_CROP, RESIZE_PAD, LETTERBOX)
 
 
 @dataclass(frozen=True)
@@ -161,21 +169,40 @@ class MemoryConfig:
 
 @dataclass(frozen=True)
 class MaskConfig:
-    """Hand localisation: mask threshold, minimum area and box expansion (paper Sec. 3.2)."""
+    """Hand localisation: mask threshold and minimum area (paper Sec. 3.2).
+
+    The box expansion (x1.5) is the hand branch's ``box_expansion``, not a mask setting.
+    """
 
     threshold: float = 0.5
     min_pixels: int = 16
-    box_expand: float = 1.5
 
     def __post_init__(self) -> None:
         if not 0.0 < self.threshold < 1.0:
             raise ValueError(f'masks.threshold must be in (0, 1), got {self.threshold}')
-        require_positive('masks', min_pixels=self.min_pixels, box_expand=self.box_expand)
+        require_positive('masks', min_pixels=self.min_pixels)
 
 
 @dataclass(frozen=True)
 class GeometryConfig:
-    """The whole geometry branch; ``autocast_bf16`` applies on CUDA only."""
+    """The whole geometry branch, and the two conventions its weights were trained with.
+
+    Attributes:
+        aggregator: backbone sizes (and the model input size, see ``preprocessing``).
+        camera_head: camera head sizes.
+        dpt: depth / mask decoder sizes.
+        memory: streaming memory sizes.
+        masks: hand-mask thresholds.
+        autocast_bf16: run the aggregator in bf16 autocast (CUDA only).
+        pose_direction: which way the camera head's ``[R | t]`` points, ``cam_to_world`` (ours,
+            LingBot-Map) or ``world_to_cam`` (VGGT); see ``model/pose_encoding.py``.
+        preprocessing: how frames are fitted to the input: ``letterbox`` (ours: scaled into
+            ``image_width`` x ``image_height``, black bars), ``resize_crop`` (LingBot-Map/VGGT:
+            width ``image_width``, bicubic, height rounded to the patch and centre-cropped to at
+            most ``image_width``) or ``resize_pad`` (the longer side ``image_width``, padded
+            white to a square); see ``engine/frame_input.py``.
+
+    """
 
     aggregator: AggregatorConfig = field(default_factory=AggregatorConfig)
     camera_head: CameraHeadConfig = field(default_factory=CameraHeadConfig)
@@ -183,16 +210,30 @@ class GeometryConfig:
     memory: MemoryConfig = field(default_factory=MemoryConfig)
     masks: MaskConfig = field(default_factory=MaskConfig)
     autocast_bf16: bool = True
+    pose_direction: str = CAM_TO_WORLD
+    preprocessing: str = LETTERBOX
+
+    def __post_init__(self) -> None:
+        check_pose_direction(self.pose_direction)
+        if self.preprocessing not in PREPROCESSING_MODES:
+            raise ValueError(f'preprocessing must be one of {list(PREPROCESSING_MODES)}, '
+                             f'got {self.preprocessing!r}')
 
 
-def load_geometry_config(path: str | Path) -> GeometryConfig:
+def load_geometry_config(path: str | Path, require_complete: bool = False) -> GeometryConfig:
     """Load the ``geometry:`` section of a model YAML file.
 
+    Args:
+        path: the YAML file.
+        require_complete: every field must be in the file (checkpoint configs), instead of
+            defaults filling in what is left out.
+
     Raises:
-        ConfigError: for a missing file or section, an unknown key, a wrong type or a bad value.
+        ConfigError: for a missing file or section, an unknown key, a wrong type or a bad value,
+            and with ``require_complete`` for a missing field.
 
     """
-    return load_config(path, GEOMETRY_SECTION, GeometryConfig)
+    return load_config(path, GEOMETRY_SECTION, GeometryConfig, require_complete=require_complete)
 
 
 def named_config_path(name: str) -> Path:

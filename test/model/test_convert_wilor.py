@@ -1,20 +1,20 @@
-"""Tests of model/hand/convert_wilor.py with fake WiLoR checkpoints built from our tiny ViT."""
+"""Tests of model/io/convert_wilor.py with fake WiLoR checkpoints built from our tiny ViT."""
 
 import json
 from pathlib import Path
 
 from infinihand_ros.core.errors import CheckpointError
-from infinihand_ros.model.checkpoint import config_to_yaml
 from infinihand_ros.model.config import GeometryConfig
 from infinihand_ros.model.hand.appearance_vit import AppearanceViT
 from infinihand_ros.model.hand.config import HandBranchConfig
 from infinihand_ros.model.hand.config import load_hand_branch_config
-from infinihand_ros.model.hand.convert_wilor import check_wilor_backbone
-from infinihand_ros.model.hand.convert_wilor import convert_wilor
-from infinihand_ros.model.hand.convert_wilor import group_unused_keys
-from infinihand_ros.model.hand.convert_wilor import main
-from infinihand_ros.model.infinihand_checkpoint import load_infinihand_checkpoint
 from infinihand_ros.model.infinihand_model import build_infinihand_model
+from infinihand_ros.model.io.checkpoint import read_checkpoint
+from infinihand_ros.model.io.compose import load_composed_model
+from infinihand_ros.model.io.convert_wilor import check_wilor_backbone
+from infinihand_ros.model.io.convert_wilor import convert_wilor
+from infinihand_ros.model.io.convert_wilor import group_unused_keys
+from infinihand_ros.model.io.convert_wilor import main
 import pytest
 import torch
 
@@ -50,13 +50,24 @@ WRAPPINGS = {
 
 
 @pytest.mark.parametrize('wrapping', sorted(WRAPPINGS))
-def test_backbone_loads_and_the_rest_stays_seeded(wrapping: str, geometry_config: GeometryConfig,
-                                                  hand_config: HandBranchConfig,
-                                                  tmp_path) -> None:
+def test_backbone_becomes_a_crop_encoder_checkpoint(wrapping: str,
+                                                    geometry_config: GeometryConfig,
+                                                    hand_config: HandBranchConfig,
+                                                    tmp_path) -> None:
     backbone = _fake_backbone(hand_config)
     source = _write(WRAPPINGS[wrapping]({**backbone, **EXTRAS}), tmp_path / 'wilor.ckpt')
-    conversion = convert_wilor(source, tmp_path / 'out', geometry_config, hand_config, seed=2)
-    loaded, _ = load_infinihand_checkpoint(tmp_path / 'out')
+    conversion = convert_wilor(source, tmp_path / 'out', hand_config)
+    written = read_checkpoint(tmp_path / 'out')
+    assert written.hand_config == hand_config and written.geometry_config is None
+    assert written.tensors.keys() == {f'hand_branch.{key}' for key in backbone}
+    assert written.metadata['source'] == 'wilor: wilor.ckpt'
+    assert conversion.report.exact and conversion.report.matched == len(backbone)
+    assert conversion.unused == {
+        'refine_net': ('refine_net.dec_layers.0.weight', 'refine_net.bn.running_mean'),
+        'mano': ('mano.faces_tensor',), 'discriminator': ('discriminator.D_conv1.weight',),
+        'other': ('initialized',)}
+    loaded, report = load_composed_model(crop_encoder=tmp_path / 'out',
+                                         geometry_config=geometry_config, seed=2)
     state = loaded.state_dict()
     for key, tensor in backbone.items():
         assert torch.equal(state[f'hand_branch.{key}'], tensor), key
@@ -64,43 +75,34 @@ def test_backbone_loads_and_the_rest_stays_seeded(wrapping: str, geometry_config
     for key, tensor in seeded.items():
         if not key.startswith('hand_branch.backbone.'):
             assert torch.equal(state[key], tensor), key
-    assert conversion.report.exact and conversion.report.matched == len(backbone)
-    assert conversion.unused == {
-        'refine_net': ('refine_net.dec_layers.0.weight', 'refine_net.bn.running_mean'),
-        'mano': ('mano.faces_tensor',), 'discriminator': ('discriminator.D_conv1.weight',),
-        'other': ('initialized',)}
-    assert conversion.initialised == (
-        'geometry.aggregator', 'geometry.camera_head', 'geometry.depth_head',
-        'geometry.mask_head', 'hand_branch.adapter', 'hand_branch.fusion',
-        'hand_branch.mano_head', 'hand_branch.landmark_head')
+    assert report.branch('hand_branch').seeded == (
+        'hand_branch.adapter', 'hand_branch.fusion', 'hand_branch.landmark_head',
+        'hand_branch.mano_head')
 
 
-def test_shape_mismatch_names_the_key(geometry_config: GeometryConfig,
-                                      hand_config: HandBranchConfig, tmp_path) -> None:
+def test_shape_mismatch_names_the_key(hand_config: HandBranchConfig, tmp_path) -> None:
     backbone = _fake_backbone(hand_config)
     backbone['backbone.pos_embed'] = torch.zeros(1, 193, 1280)
     source = _write({'state_dict': backbone}, tmp_path / 'wilor.ckpt')
     with pytest.raises(CheckpointError) as info:
-        convert_wilor(source, tmp_path / 'out', geometry_config, hand_config)
+        convert_wilor(source, tmp_path / 'out', hand_config)
     message = str(info.value)
     assert 'shape of backbone.pos_embed: model [1, 49, 192], checkpoint [1, 193, 1280]' in message
     assert '--hand-branch paper' in message
     assert not (tmp_path / 'out').exists()
 
 
-def test_missing_backbone_key_is_named(geometry_config: GeometryConfig,
-                                       hand_config: HandBranchConfig, tmp_path) -> None:
+def test_missing_backbone_key_is_named(hand_config: HandBranchConfig, tmp_path) -> None:
     backbone = _fake_backbone(hand_config)
     del backbone['backbone.last_norm.bias']
     source = _write(backbone, tmp_path / 'wilor.ckpt')
     with pytest.raises(CheckpointError, match='missing: backbone.last_norm.bias'):
-        convert_wilor(source, tmp_path / 'out', geometry_config, hand_config)
+        convert_wilor(source, tmp_path / 'out', hand_config)
 
 
-def test_unreadable_checkpoints_fail_clearly(geometry_config: GeometryConfig,
-                                             hand_config: HandBranchConfig, tmp_path) -> None:
+def test_unreadable_checkpoints_fail_clearly(hand_config: HandBranchConfig, tmp_path) -> None:
     def convert(path: Path) -> None:
-        convert_wilor(path, tmp_path / 'out', geometry_config, hand_config)
+        convert_wilor(path, tmp_path / 'out', hand_config)
 
     with pytest.raises(CheckpointError, match='no such WiLoR checkpoint file'):
         convert(tmp_path / 'absent.ckpt')
@@ -128,23 +130,19 @@ def test_real_wilor_keys_map_by_identity_and_group() -> None:
     assert not groups['mano'] and not groups['discriminator'] and not groups['other']
 
 
-def test_cli_converts_and_reports(geometry_config: GeometryConfig,
-                                  hand_config: HandBranchConfig, tmp_path, capsys) -> None:
+def test_cli_converts_and_reports(hand_config: HandBranchConfig, tmp_path, capsys) -> None:
     source = _write({'state_dict': {**_fake_backbone(hand_config), **EXTRAS}},
                     tmp_path / 'wilor.ckpt')
-    geometry_yaml = tmp_path / 'micro.yaml'
-    geometry_yaml.write_text(config_to_yaml(geometry_config), encoding='utf-8')
-    args = ['--wilor', str(source), '--out', str(tmp_path / 'out'), '--geometry',
-            str(geometry_yaml), '--hand-branch', 'tiny']
+    args = ['--wilor', str(source), '--out', str(tmp_path / 'out'), '--hand-branch', 'tiny']
     assert main(args) == 0
     printed = capsys.readouterr().out
     assert 'unused WiLoR refine_net: 2 keys' in printed
-    assert 'hand_branch.adapter' in printed
-    assert load_infinihand_checkpoint(tmp_path / 'out')[0].hand_branch.config == hand_config
+    assert 'hand_branch.backbone.*' in printed
+    assert read_checkpoint(tmp_path / 'out').hand_config == hand_config
     with pytest.raises(SystemExit) as info:
         main(args)  # --out exists now
     assert info.value.code == 2
     assert 'already exists' in capsys.readouterr().err
-    assert main([*args[:2], '--out', str(tmp_path / 'other'), '--geometry', 'huge']) == 1
+    assert main([*args[:2], '--out', str(tmp_path / 'other'), '--hand-branch', 'huge']) == 1
     assert capsys.readouterr().err.startswith('error: ')
     assert not (tmp_path / 'other').exists()

@@ -1,7 +1,6 @@
 """Tests of model/infinihand_model.py: seeded building, branch compatibility, config names."""
 
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.model.checkpoint import config_to_yaml
 from infinihand_ros.model.config import GeometryConfig
 from infinihand_ros.model.geometry_model import GeometryModel
 from infinihand_ros.model.hand.config import HandBranchConfig
@@ -9,6 +8,7 @@ from infinihand_ros.model.hand.hand_branch import HandBranch
 from infinihand_ros.model.infinihand_model import build_infinihand_model
 from infinihand_ros.model.infinihand_model import InfiniHandModel
 from infinihand_ros.model.infinihand_model import load_branch_configs
+from infinihand_ros.model.io.checkpoint import config_to_yaml
 import pytest
 import torch
 

@@ -2,6 +2,7 @@
 
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.model.config import AggregatorConfig
+from infinihand_ros.model.config import GeometryConfig
 from infinihand_ros.model.config import load_geometry_config
 from infinihand_ros.model.config import MemoryConfig
 from infinihand_ros.model.config import named_config_path
@@ -19,11 +20,42 @@ def test_shipped_configs_load(name: str) -> None:
 
 
 def test_paper_config_uses_lingbot_map_sizes() -> None:
-    """The paper configuration has LingBot-Map's input, widths and memory sizes."""
-    config = load_geometry_config(named_config_path('paper'))
+    """The paper configuration has LingBot-Map's input, widths, memory and conventions."""
+    config = load_geometry_config(named_config_path('paper'), require_complete=True)
     assert (config.aggregator.image_width, config.aggregator.image_height) == (518, 378)
     assert (config.aggregator.embed_dim, config.aggregator.depth) == (1024, 24)
     assert (config.memory.anchor_frames, config.memory.window) == (8, 64)
+    assert (config.pose_direction, config.preprocessing) == ('cam_to_world', 'resize_crop')
+
+
+def test_tiny_config_keeps_our_conventions() -> None:
+    """The tiny configuration letterboxes and decodes camera-to-world, like the defaults."""
+    config = load_geometry_config(named_config_path('tiny'))
+    assert (config.pose_direction, config.preprocessing) == ('cam_to_world', 'letterbox')
+    assert (GeometryConfig().pose_direction, GeometryConfig().preprocessing) == (
+        'cam_to_world', 'letterbox')
+
+
+@pytest.mark.parametrize('line, message', [
+    ('pose_direction: c2w', "pose_direction must be one of .*got 'c2w'"),
+    ('preprocessing: crop', "preprocessing must be one of .*got 'crop'"),
+])
+def test_bad_conventions_are_config_errors(tmp_path, line: str, message: str) -> None:
+    """An unknown pose direction or preprocessing mode in the YAML names the value."""
+    path = tmp_path / 'model.yaml'
+    path.write_text(f'geometry:\n  {line}\n')
+    with pytest.raises(ConfigError, match=message):
+        load_geometry_config(path)
+
+
+def test_incomplete_yaml_is_refused_when_completeness_is_required(tmp_path) -> None:
+    """require_complete names the missing field instead of filling in its default."""
+    path = tmp_path / 'model.yaml'
+    path.write_text(named_config_path('tiny').read_text().replace(
+        '  preprocessing: letterbox', '  # preprocessing left out'))
+    assert load_geometry_config(path).preprocessing == 'letterbox'
+    with pytest.raises(ConfigError, match='preprocessing'):
+        load_geometry_config(path, require_complete=True)
 
 
 @pytest.mark.parametrize('kwargs, message', [

@@ -292,7 +292,7 @@ def test_camera_head_cache_grows_by_one_token_per_stored_frame(micro_model, rng)
 
 
 def test_a_non_finite_block_leaves_the_stream_as_it_was(micro_model: GeometryModel, rng) -> None:
-    """NaN weights raise ModelOutputError; after restoring them the stream goes on unchanged."""
+    """Broken (NaN) weights raise ModelOutputError; restored, the stream goes on unchanged."""
     frames = _frames(rng, 4)
     broken, clean = GeometryStream(micro_model), GeometryStream(micro_model)
     with torch.no_grad():

@@ -1,10 +1,10 @@
-"""Tests of model/summary.py: counts and keys from the meta device, JSON CLI."""
+"""Tests of model/io/summary.py: counts and keys from the meta device, JSON CLI."""
 
 import json
 
 from infinihand_ros.model.config import named_config_path
-from infinihand_ros.model.summary import main
-from infinihand_ros.model.summary import summarize
+from infinihand_ros.model.io.summary import main
+from infinihand_ros.model.io.summary import summarize
 
 
 def test_paper_summary_counts_match_lingbot_map_plus_mask_head() -> None:

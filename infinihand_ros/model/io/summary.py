@@ -1,6 +1,6 @@
 """Parameter counts and state-dict keys of a model configuration, without allocating weights.
 
-    python -m infinihand_ros.model.summary --config config/model_paper.yaml [--json]
+    python -m infinihand_ros.model.io.summary --config config/model_paper.yaml [--json]
 
 The model is built on PyTorch's meta device, so even the paper configuration costs no memory.
 ``--json`` prints ``{"params": {<top-level module>: count, ..., "total": count},
