@@ -22,7 +22,7 @@ class BagError(InfiniHandError):
 
 
 class ModelOutputError(InfiniHandError):
-    """The network gave non-finite outputs: its weights (the checkpoint) are at fault, not the input."""
+    """The network gave non-finite outputs: its weights are at fault, not the input."""
 
 
 class EngineStateError(InfiniHandError, RuntimeError):

@@ -1,17 +1,115 @@
-"""Settings of the streaming engine (``config/engine.yaml``, section ``engine``)."""
+"""Settings of the streaming engine: one tree, validated at load (``config/engine.yaml``).
+
+``engine`` -> ``model`` (geometry and hand-branch configs, hand model incl. real MANO, weights)
+-> ``detection`` -> ``metric_scale`` -> ``pose_track`` -> ``bundle_adjustment`` (BA settings,
+or null for none). Every value is checked when the file is loaded; errors name the key, e.g.
+``engine.model.hand_model.mano_dir`` or ``engine.bundle_adjustment.tracking.klt_window_px``.
+In YAML, ``bundle_adjustment`` may be ``null`` (off), ``true`` (the package's
+``config/ba.yaml``), a path to a BA YAML file, or the BA settings themselves.
+"""
 
 from dataclasses import dataclass
 from dataclasses import field
 from pathlib import Path
 from typing import Final
 
+from infinihand_ros.ba.config import BA_SECTION
+from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.core.config import config_dir
-from infinihand_ros.core.config import load_config
+from infinihand_ros.core.config import config_from_dict
+from infinihand_ros.core.config import read_yaml
+from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
+from infinihand_ros.engine.pose_track import PoseTrackConfig
+from infinihand_ros.mano.hand_model import HandModelConfig
+import torch
 
 ENGINE_SECTION: Final = 'engine'
 MODES: Final = ('per_frame', 'windowed')
+
+
+def check_device(name: str, key: str = 'engine.device') -> None:
+    """Raise ConfigError unless ``name`` is a torch device this machine can run the model on.
+
+    Args:
+        name: 'cpu', 'cuda', 'cuda:N' (or another device type torch knows and has).
+        key: the config key named in the error.
+
+    """
+    try:
+        device = torch.device(name)
+    except (RuntimeError, TypeError) as exc:
+        raise ConfigError(f'{key}: {name!r} is not a torch device; use cpu, cuda or '
+                          'cuda:N') from exc
+    if device.type == 'meta':
+        raise ConfigError(f'{key}: the meta device holds no data and cannot run the model; '
+                          'use cpu or cuda')
+    if device.type == 'cuda':
+        count = torch.cuda.device_count() if torch.cuda.is_available() else 0
+        if count == 0:
+            raise ConfigError(f'{key}: {name!r} asked for, but this machine has no usable CUDA '
+                              f'device (torch {torch.__version__}); use cpu')
+        if device.index is not None and device.index >= count:
+            raise ConfigError(f'{key}: {name!r} asked for, but only {count} CUDA device(s) '
+                              f'exist (cuda:0..cuda:{count - 1})')
+    elif device.type != 'cpu':
+        raise ConfigError(f'{key}: device type {device.type!r} is not supported; use cpu or '
+                          'cuda')
+
+
+@dataclass(frozen=True)
+class ModelSelection:
+    """Which model the engine runs (section ``engine.model``).
+
+    Attributes:
+        geometry: geometry-branch config, a name ('tiny', 'paper') or a YAML path.
+        hand_branch: hand-branch config, a name ('tiny', 'paper') or a YAML path.
+        hand_model: the hand model (built-in skeleton, or real MANO from ``mano_dir``).
+        checkpoint: our whole-model checkpoint directory (its configs win), or None.
+        geometry_weights: a converted LingBot-Map/VGGT checkpoint directory for the geometry
+            branch (``model/io/convert``), or None.
+        crop_encoder_weights: a converted WiLoR checkpoint directory for the crop encoder, or
+            None.
+        seed: seed of every weight that no checkpoint provides.
+
+    """
+
+    geometry: str = 'tiny'
+    hand_branch: str = 'tiny'
+    hand_model: HandModelConfig = field(default_factory=HandModelConfig)
+    checkpoint: str | None = None
+    geometry_weights: str | None = None
+    crop_encoder_weights: str | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if self.checkpoint is not None and (self.geometry_weights or self.crop_encoder_weights):
+            raise ConfigError('engine.model: give either checkpoint (a whole model) or '
+                              'geometry_weights / crop_encoder_weights (parts), not both')
+
+
+@dataclass(frozen=True)
+class DetectionConfig:
+    """Hand detection and camera decoding (section ``engine.detection``).
+
+    Attributes:
+        presence_threshold: a hand mask whose peak probability is below this is no hand.
+        fov_range_deg: predicted fields of view are clamped to this range (the camera head's
+            ReLU allows 0, which no camera has).
+
+    """
+
+    presence_threshold: float = 0.5
+    fov_range_deg: tuple[float, float] = (5.0, 170.0)
+
+    def __post_init__(self) -> None:
+        if not 0.0 < self.fov_range_deg[0] < self.fov_range_deg[1] < 180.0:
+            raise ConfigError(f'engine.detection.fov_range_deg must be increasing within '
+                              f'(0, 180), got {self.fov_range_deg}')
+        if not 0.0 < self.presence_threshold < 1.0:
+            raise ConfigError(f'engine.detection.presence_threshold must be in (0, 1), got '
+                              f'{self.presence_threshold}')
 
 
 @dataclass(frozen=True)
@@ -19,52 +117,59 @@ class EngineConfig:
     """How the engine runs the model.
 
     Attributes:
-        geometry: geometry-branch config, a name ('tiny', 'paper') or a YAML path.
-        hand_branch: hand-branch config, a name ('tiny', 'paper') or a YAML path.
         mode: 'per_frame' (each frame out as soon as it is computed; lowest latency) or
-            'windowed' (frames batched into windows, backbone and decoding pipelined).
+            'windowed' (frames batched into windows, geometry and hands pipelined).
         window: frames per window in windowed mode (the paper: 16).
         keyframe_interval: after the anchors, every this-many-th frame enters the memory.
-        device: torch device ('cpu', 'cuda', 'cuda:1', ...).
-        seed: seed of the weight initialisation when no trained weights are loaded.
-        presence_threshold: a hand mask whose peak probability is below this is no detection.
-        fov_range_deg: predicted fields of view are clamped to this range (the camera head's
-            ReLU allows 0, which no camera has).
+        device: torch device ('cpu', 'cuda', 'cuda:1', ...), checked at load.
+        model: the model and its weights.
+        detection: hand detection thresholds and the FoV clamp.
         metric_scale: running metric-scale estimate from the hands.
-        checkpoint: our checkpoint directory (its configs win); None: seeded untrained weights.
-        bundle_adjustment: run sparse BA in a background thread and correct the poses.
-        ba_config: BA settings file; None: the package's ``config/ba.yaml``.
+        pose_track: the pose track's memory and scale smoothing.
+        bundle_adjustment: sparse BA settings (BA runs in the background and corrects the
+            poses), or None for no BA.
 
     """
 
-    geometry: str = 'tiny'
-    hand_branch: str = 'tiny'
     mode: str = 'per_frame'
     window: int = 16
     keyframe_interval: int = 1
     device: str = 'cpu'
-    seed: int = 0
-    presence_threshold: float = 0.5
-    fov_range_deg: tuple[float, float] = (5.0, 170.0)
+    model: ModelSelection = field(default_factory=ModelSelection)
+    detection: DetectionConfig = field(default_factory=DetectionConfig)
     metric_scale: MetricScaleConfig = field(default_factory=MetricScaleConfig)
-    checkpoint: str | None = None
-    bundle_adjustment: bool = False
-    ba_config: str | None = None
+    pose_track: PoseTrackConfig = field(default_factory=PoseTrackConfig)
+    bundle_adjustment: BAConfig | None = None
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ConfigError(f'engine.mode must be one of {list(MODES)}, got {self.mode!r}')
-        if self.window < 1 or self.keyframe_interval < 1:
-            raise ConfigError(f'engine.window and engine.keyframe_interval must be >= 1, got '
-                              f'{self.window} and {self.keyframe_interval}')
-        if not 0.0 < self.fov_range_deg[0] < self.fov_range_deg[1] < 180.0:
-            raise ConfigError(f'engine.fov_range_deg must be increasing within (0, 180), got '
-                              f'{self.fov_range_deg}')
-        if not 0.0 < self.presence_threshold < 1.0:
-            raise ConfigError(f'engine.presence_threshold must be in (0, 1), got '
-                              f'{self.presence_threshold}')
+        require_at_least('engine', 1, window=self.window,
+                         keyframe_interval=self.keyframe_interval)
+        check_device(self.device)
 
 
 def load_engine_config(path: str | Path | None = None) -> EngineConfig:
-    """Load ``config/engine.yaml`` (or ``path``)."""
-    return load_config(path or config_dir() / 'engine.yaml', ENGINE_SECTION, EngineConfig)
+    """Load ``config/engine.yaml`` (or ``path``), resolving ``bundle_adjustment`` files.
+
+    Raises:
+        ConfigError: for a missing or unreadable file, unknown keys, wrong types or values
+            (naming the key).
+
+    """
+    path = Path(path) if path is not None else config_dir() / 'engine.yaml'
+    data = read_yaml(path)
+    if not isinstance(data, dict) or ENGINE_SECTION not in data:
+        raise ConfigError(f'{path}: no {ENGINE_SECTION!r} section')
+    section = dict(data[ENGINE_SECTION] or {})
+    ba = section.get('bundle_adjustment')
+    if ba is True or isinstance(ba, str):
+        ba_path = config_dir() / 'ba.yaml' if ba is True else Path(ba).expanduser()
+        ba_data = read_yaml(ba_path)
+        if not isinstance(ba_data, dict) or BA_SECTION not in ba_data:
+            raise ConfigError(f'{path}: engine.bundle_adjustment: {ba_path} has no '
+                              f'{BA_SECTION!r} section')
+        section['bundle_adjustment'] = ba_data[BA_SECTION]
+    elif ba is False:
+        section['bundle_adjustment'] = None
+    return config_from_dict(EngineConfig, section, f'{path}: {ENGINE_SECTION}')

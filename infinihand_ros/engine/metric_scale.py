@@ -3,7 +3,8 @@
 The geometry branch predicts depth and camera translations up to an unknown scale; hands are
 metric (MANO sizes + least-squares projection). Each observation is the ratio of a hand's metric
 depth to the model's depth at the hand's pixels; the estimate is the median of the most recent
-ratios, with a MAD-based standard error as its uncertainty.
+ratios, with a MAD-based standard error as its uncertainty. ``hand_depth_ratios`` computes the
+observations from the hand branch's joints and the depth head's map.
 """
 
 from collections import deque
@@ -13,6 +14,7 @@ from typing import Final
 
 from infinihand_ros.core.errors import ConfigError
 import numpy as np
+import torch
 
 #: Converts a median absolute deviation into a normal standard deviation.
 MAD_TO_SIGMA: Final = 1.4826
@@ -105,3 +107,33 @@ class MetricScaleEstimator:
         median = float(np.median(ratios))
         spread = MAD_TO_SIGMA * float(np.median(np.abs(ratios - median)))
         return ScaleEstimate(median, MEDIAN_STANDARD_ERROR * spread / np.sqrt(count), count)
+
+
+def hand_depth_ratios(depth: torch.Tensor, frame_index: torch.Tensor, joints_2d: torch.Tensor,
+                      joints_depth: torch.Tensor) -> torch.Tensor:
+    """Return per hand the median of metric joint depth / model depth at the joint's pixel.
+
+    Joints outside the image or with non-positive depths are left out (NaN when none is left);
+    the median over the 21 joints makes occluded joints and the limb radius matter little.
+
+    Args:
+        depth: (F, H, W) model depth maps of the frames (model units).
+        frame_index: (N,) frame of each hand.
+        joints_2d: (N, 21, 2) joint pixels (u, v) in the depth maps' image.
+        joints_depth: (N, 21) metric joint depths (m) from the hand branch.
+
+    Returns:
+        (N,) ratios, metres per model unit.
+
+    """
+    height, width = depth.shape[-2:]
+    pixels = joints_2d.round().long()
+    inside = ((pixels[..., 0] >= 0) & (pixels[..., 0] < width) & (pixels[..., 1] >= 0)
+              & (pixels[..., 1] < height))
+    columns = pixels[..., 0].clamp(0, width - 1)
+    rows = pixels[..., 1].clamp(0, height - 1)
+    model = depth[frame_index[:, None], rows, columns]
+    valid = inside & (model > 0) & (joints_depth > 0) & torch.isfinite(model)
+    ratios = torch.where(valid, joints_depth / model.clamp_min(1e-12),
+                         torch.full_like(model, float('nan')))
+    return ratios.nanmedian(dim=-1).values

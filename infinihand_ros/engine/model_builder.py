@@ -1,37 +1,66 @@
-"""Build the engine's model: our checkpoint when one is configured, else seeded initial weights."""
+"""Build the engine's model: from checkpoints when configured, else seeded initial weights.
+
+``engine.model`` may name a whole-model checkpoint (``checkpoint``) or the parts
+``geometry_weights`` (a converted LingBot-Map / VGGT checkpoint) and ``crop_encoder_weights`` (a
+converted WiLoR checkpoint); ``model/io/compose.py`` loads them together and seeds what none of
+them provides with ``engine.model.seed``. The hand models come from ``engine.model.hand_model``
+(the built-in skeleton, or real MANO from the user's files).
+"""
 
 import logging
 
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.model.infinihand_checkpoint import load_infinihand_checkpoint
+from infinihand_ros.mano.base import HandModel
+from infinihand_ros.mano.hand_model import build_hand_model
 from infinihand_ros.model.infinihand_model import build_infinihand_model
 from infinihand_ros.model.infinihand_model import InfiniHandModel
 from infinihand_ros.model.infinihand_model import load_branch_configs
+from infinihand_ros.model.io.compose import load_composed_model
 
 logger = logging.getLogger(__name__)
 
 
-def build_model(config: EngineConfig) -> InfiniHandModel:
-    """Build the model of ``config``, in eval mode on its device.
+def build_model(config: EngineConfig,
+                hand_models: tuple[HandModel, HandModel] | None = None) -> InfiniHandModel:
+    """Build the model of ``config``, in eval mode on ``config.device``.
 
-    With ``config.checkpoint`` set, the checkpoint's own configs define the model (a warning
-    names each one that differs from ``config.geometry``/``config.hand_branch``); otherwise the
-    named configs with weights seeded by ``config.seed``.
+    With any checkpoint configured, the checkpoints' own configs define the model (a warning
+    names each one that differs from ``engine.model.geometry`` / ``hand_branch``) and the
+    loading report, by branch, is logged; otherwise the named configs with weights seeded by
+    ``engine.model.seed``.
+
+    Args:
+        config: the engine config.
+        hand_models: (left, right) hand models to use instead of ``engine.model.hand_model``.
 
     Raises:
         ConfigError: for a bad config name or file.
-        CheckpointError: for a missing or non-matching checkpoint.
+        CheckpointError: for a missing or non-matching checkpoint or MANO file.
 
     """
-    geometry_config, hand_config = load_branch_configs(config.geometry, config.hand_branch)
-    if config.checkpoint is None:
-        model = build_infinihand_model(geometry_config, hand_config, seed=config.seed)
+    selection = config.model
+    geometry_config, hand_config = load_branch_configs(selection.geometry, selection.hand_branch)
+    if hand_models is None:
+        hand_models = (build_hand_model(selection.hand_model, LEFT),
+                       build_hand_model(selection.hand_model, RIGHT))
+    parts = {'full': selection.checkpoint, 'geometry': selection.geometry_weights,
+             'crop_encoder': selection.crop_encoder_weights}
+    if all(path is None for path in parts.values()):
+        model = build_infinihand_model(geometry_config, hand_config, seed=selection.seed,
+                                       hand_models=hand_models)
         return model.eval().to(config.device)
-    model, _ = load_infinihand_checkpoint(config.checkpoint, device=config.device)
+    model, report = load_composed_model(**parts, geometry_config=geometry_config,
+                                        hand_config=hand_config, seed=selection.seed,
+                                        hand_models=hand_models, device=config.device)
+    logger.info('model loaded:\n%s', report.describe())
     if model.geometry.config != geometry_config:
-        logger.warning('checkpoint %s: its geometry config differs from engine.geometry %r; '
-                       'the checkpoint wins', config.checkpoint, config.geometry)
+        logger.warning('checkpoint %s: its geometry config differs from engine.model.geometry '
+                       '%r; the checkpoint wins', report.config_sources['geometry'],
+                       selection.geometry)
     if model.hand_branch.config != hand_config:
-        logger.warning('checkpoint %s: its hand-branch config differs from engine.hand_branch '
-                       '%r; the checkpoint wins', config.checkpoint, config.hand_branch)
+        logger.warning('checkpoint %s: its hand-branch config differs from '
+                       'engine.model.hand_branch %r; the checkpoint wins',
+                       report.config_sources['hand_branch'], selection.hand_branch)
     return model

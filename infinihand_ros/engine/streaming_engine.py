@@ -1,35 +1,52 @@
 """The one streaming engine: push frames, get per-frame camera poses and world-space hands.
 
+Data flows one way. Each frame is checked and fitted to the model (``frame_input``), then the
+paper's camera-space pass (``InfiniHandModel``: geometry through the streaming memory, poses,
+boxes from masks, hand branch) runs per block. Frame by frame, in order, the camera-space record
+then goes to the pose track (raw pose, metric scale from the hands, BA corrections), to bundle
+adjustment (keyframes), and its hands are placed in the world once, with the track's best pose.
+
 The first ``anchor_frames`` frames are held back and processed together (the paper's anchor
 context), in both modes. After that, per-frame mode runs each frame as it arrives; windowed mode
-collects ``window`` frames, runs the backbone on them in one call and hands the decoding (hand
-branch, scale, world frame) to a worker thread, so the backbone of the next window overlaps the
-decoding of this one (paper Sec. 4.4). Attention inside a window is causal, so both modes give
-the same per-frame results. Memory is bounded: the streaming memory is capped (see
-``model/streaming_memory.py``) and at most one window waits here.
+collects ``window`` frames, runs the geometry branch on them in one call and the hand branch in
+a worker thread, so the geometry of the next window overlaps the hands of this one (paper Sec.
+4.4). At most one window is in the worker: the next one waits for it (bounded memory). Attention
+inside a window is causal, so both modes give the same per-frame results.
+
+Threading contract: one caller at a time. ``push``, ``flush``, ``reset`` and ``close`` raise
+``EngineStateError`` when called while another thread is inside one of them, and after
+``close()``; nothing is consumed then.
 """
 
 from collections import deque
+from collections.abc import Iterator
 from concurrent.futures import Future
 from concurrent.futures import ThreadPoolExecutor
+import contextlib
+import threading
 
-from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.errors import EngineStateError
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.engine.ba_stage import BundleAdjustmentStage
+from infinihand_ros.engine.camera_space import CameraSpaceFrame
+from infinihand_ros.engine.camera_space import PreparedFrame
+from infinihand_ros.engine.camera_space import split_frames
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
-from infinihand_ros.engine.decode import decode_block
-from infinihand_ros.engine.decode import DecodeSettings
-from infinihand_ros.engine.decode import PreparedFrame
 from infinihand_ros.engine.frame_input import check_image
 from infinihand_ros.engine.frame_input import check_intrinsics
-from infinihand_ros.engine.frame_input import letterbox
-from infinihand_ros.engine.metric_scale import MetricScaleEstimator
-from infinihand_ros.engine.metric_scale import ScaleEstimate
+from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.model_builder import InfiniHandModel
-from infinihand_ros.model.geometry_stream import GeometryStream
+from infinihand_ros.engine.pose_track import PoseTrack
+from infinihand_ros.engine.timestamps import check_timestamp
+from infinihand_ros.engine.world_placement import place_in_world
+from infinihand_ros.model.geometry_model import GeometryOutput
+from infinihand_ros.model.infinihand_model import CameraSpaceOutput
+from infinihand_ros.model.infinihand_model import HandDetection
 import numpy as np
 import torch
 
@@ -42,112 +59,150 @@ class StreamingEngine:
         """Build the engine (and its model, unless one is given) from ``config``."""
         self.config = config or load_engine_config()
         self.model = model or build_model(self.config)
-        geometry_config = self.model.geometry.config
-        self._model_size = (geometry_config.aggregator.image_width,
-                            geometry_config.aggregator.image_height)
-        self._anchor_frames = geometry_config.memory.anchor_frames
-        masks = geometry_config.masks
-        self._settings = DecodeSettings(
-            masks.threshold, masks.min_pixels, self.config.presence_threshold,
-            (float(np.radians(self.config.fov_range_deg[0])),
-             float(np.radians(self.config.fov_range_deg[1]))))
+        geometry = self.model.geometry.config
+        self._anchor_frames = geometry.memory.anchor_frames
+        self._detection = HandDetection(
+            geometry.masks.threshold, geometry.masks.min_pixels,
+            self.config.detection.presence_threshold,
+            tuple(float(np.radians(value)) for value in self.config.detection.fov_range_deg))
         self._device = next(self.model.parameters()).device
-        self._stream = GeometryStream(self.model.geometry)
-        self._scale = MetricScaleEstimator(self.config.metric_scale)
-        self._decoder = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='decode')
+        self._decoder = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_decode')
                          if self.config.mode == 'windowed' else None)
+        self._guard = threading.Lock()
+        self._closed = False
+        self._start_sequence()
+
+    def _start_sequence(self) -> None:
+        """Reset every per-sequence state (memories, counters, track, BA)."""
+        self._stream = self.model.new_stream()
         self._pending: list[PreparedFrame] = []
         self._decoding: deque[Future] = deque()
         self._frames_pushed = 0
-        self._ba = self._new_ba_stage()
-        self._source_images: dict[int, np.ndarray] = {}  # keyframes in flight, for BA only
-
-    def _new_ba_stage(self) -> BundleAdjustmentStage | None:
-        """Return a fresh BA stage when bundle adjustment is on."""
-        if not self.config.bundle_adjustment:
-            return None
-        return BundleAdjustmentStage(load_ba_config(self.config.ba_config))
-
-    @property
-    def ba_statistics(self) -> dict[str, int]:
-        """Return BA selections submitted, calls done, selections dropped and calls failed."""
-        if self._ba is None:
-            return {'submitted': 0, 'done': 0, 'dropped': 0, 'failed': 0}
-        return {'submitted': self._ba.calls_submitted, 'done': self._ba.calls_done,
-                'dropped': self._ba.worker.dropped, 'failed': self._ba.worker.failures}
+        self._last_stamp: int | None = None
+        self._accepted_stamp: int | None = None  # last stamp of a block the model accepted
+        self._model_size: tuple[int, int] | None = None
+        ba = self.config.bundle_adjustment
+        self.pose_track = PoseTrack(self.config.pose_track, self.config.metric_scale,
+                                    0.0 if ba is None else ba.corrections.blend_s)
+        self._ba = None if ba is None else BundleAdjustmentStage(ba)
 
     @property
-    def metric_scale(self) -> ScaleEstimate:
-        """Return the current metric-scale estimate (metres per model unit)."""
-        return self._scale.estimate()
+    def statistics(self) -> dict[str, object]:
+        """Return frames pushed, windows decoding, the metric scale, the pose version, BA's."""
+        estimate = self.pose_track.scale_estimate()
+        return {'frames_pushed': self._frames_pushed,
+                'windows_in_flight': sum(not future.done() for future in self._decoding),
+                'metric_scale': self.pose_track.scale,
+                'metric_scale_estimate': estimate.scale,
+                'metric_scale_uncertainty': estimate.uncertainty,
+                'metric_scale_state': self.pose_track.scale_state,
+                'pose_version': self.pose_track.version,
+                'ba': None if self._ba is None else self._ba.statistics()}
 
     def push(self, image: np.ndarray, timestamp_ns: int,
              intrinsics: Intrinsics | None = None) -> list[FrameResult]:
         """Add one frame; return the results that are ready (possibly none, possibly several).
 
         Args:
-            image: (H, W, 3) uint8 RGB.
-            timestamp_ns: the image's stamp; it is copied to its result.
+            image: (H, W, 3) uint8 RGB (the same size for the whole stream).
+            timestamp_ns: the image's stamp, integer nanoseconds, increasing; copied to its
+                result.
             intrinsics: the camera's intrinsics for this image size, or None to use the
                 model's predicted field of view.
 
         Raises:
-            InputError: for a bad image or intrinsics; the stream's state is left unchanged.
+            InputError: for a bad image, stamp or intrinsics; the stream is left unchanged.
+            ModelOutputError: when the network's outputs are not finite (names the checkpoint;
+                the frames of that block are not added to the stream).
+            EngineStateError: after ``close()`` or when another thread is inside the engine.
 
         """
-        frame = self._prepare(image, int(timestamp_ns), intrinsics)
-        if self._ba is not None and frame.keyframe:  # a copy: callers may reuse the buffer
-            self._source_images[frame.index] = image.copy()
-        self._pending.append(frame)
-        self._frames_pushed += 1
-        if len(self._pending) >= self._block_size():
-            self._run_block()
-        return self._collect(wait=False)
+        with self._exclusive():
+            frame = self._prepare(image, timestamp_ns, intrinsics)
+            self._pending.append(frame)
+            self._frames_pushed += 1
+            self._last_stamp = frame.timestamp_ns
+            if len(self._pending) >= self._block_size():
+                self._run_block()
+            return self._collect(wait=False)
 
     def flush(self) -> list[FrameResult]:
-        """Process every frame still held back and return all remaining results."""
-        if self._pending:
-            self._run_block()
-        return self._collect(wait=True)
+        """Process every frame still held back and return all remaining results.
+
+        Meant for the end of a stream. Flushing during the anchor frames processes the anchors
+        held so far as an anchor block of their own; frames pushed afterwards complete the
+        anchors in further blocks, so their results differ from those of an unflushed stream.
+
+        Raises:
+            EngineStateError: after ``close()`` or when another thread is inside the engine.
+
+        """
+        with self._exclusive():
+            if self._pending:
+                self._run_block()
+            return self._collect(wait=True)
 
     def reset(self) -> None:
-        """Start a new sequence: drop held-back frames, memories, the scale and the counters."""
-        self._collect(wait=True)
-        self._pending.clear()
-        self._source_images.clear()
-        self._stream.reset()
-        self._scale.reset()
-        self._frames_pushed = 0
-        if self._ba is not None:
-            self._ba.close()
-            self._ba = self._new_ba_stage()
+        """Start a new sequence: drop held-back frames, memories, the pose track and BA."""
+        with self._exclusive():
+            self._drain()
+            if self._ba is not None:
+                self._ba.close()
+            self._start_sequence()
 
     def close(self) -> None:
-        """Stop the decoding worker (windowed mode) and the BA worker."""
-        if self._decoder is not None:
-            self._decoder.shutdown(wait=True)
-        if self._ba is not None:
-            self._ba.close()
+        """Stop the hand-decoding worker (windowed mode) and the BA worker; idempotent."""
+        with self._guard:
+            if self._closed:
+                return
+            self._closed = True
+            self._drain()
+            if self._decoder is not None:
+                self._decoder.shutdown(wait=True)
+            if self._ba is not None:
+                self._ba.close()
 
     def __enter__(self) -> 'StreamingEngine':
         """Return the engine."""
         return self
 
     def __exit__(self, *exc_info: object) -> None:
-        """Stop the worker."""
+        """Close the engine."""
         self.close()
+
+    @contextlib.contextmanager
+    def _exclusive(self) -> Iterator[None]:
+        """Hold the engine for one call; refuse concurrent callers and a closed engine."""
+        if not self._guard.acquire(blocking=False):
+            raise EngineStateError('StreamingEngine: called from two threads at once; the engine '
+                                   'serves one caller at a time (serialise the calls)')
+        try:
+            if self._closed:
+                raise EngineStateError('StreamingEngine: used after close(); build a new engine')
+            yield
+        finally:
+            self._guard.release()
 
     def _prepare(self, image: np.ndarray, timestamp_ns: int,
                  intrinsics: Intrinsics | None) -> PreparedFrame:
         """Check a frame and fit it to the model size (raises before any state changes)."""
+        stamp = check_timestamp(timestamp_ns, self._last_stamp)
         image = check_image(image)
         intrinsics = check_intrinsics(intrinsics, image)
-        fitted, mapping = letterbox(image, self._model_size)
+        geometry = self.model.geometry.config
+        fitted, mapping = fit_image(image, geometry.preprocessing, geometry.aggregator)
+        if self._model_size not in (None, mapping.model_size):
+            raise InputError(f'image: a {image.shape[1]}x{image.shape[0]} frame fits the model '
+                             f'at {mapping.model_size[0]}x{mapping.model_size[1]}, but this '
+                             f'stream runs at {self._model_size[0]}x{self._model_size[1]}; keep '
+                             'one image size per stream or reset() between streams')
+        self._model_size = mapping.model_size
         pixels = torch.from_numpy(fitted).to(self._device).permute(2, 0, 1).float() / 255.0
         index = self._frames_pushed
         after_anchors = index - self._anchor_frames
         keyframe = after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0
-        return PreparedFrame(index, timestamp_ns, pixels, mapping, intrinsics, keyframe)
+        source = image.copy() if self._ba is not None and keyframe else None
+        return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, source)
 
     def _block_size(self) -> int:
         """Return how many frames the next block needs."""
@@ -157,25 +212,83 @@ class StreamingEngine:
         return self.config.window if self.config.mode == 'windowed' else 1
 
     def _run_block(self) -> None:
-        """Run the backbone on the held-back frames and queue (or do) their decoding."""
+        """Run the geometry branch on the held-back frames and queue (or do) the hand branch."""
         frames, self._pending = self._pending, []
         images = torch.stack([frame.pixels for frame in frames])[None]
-        with torch.inference_mode():
-            output = self._stream.step(images, [frame.keyframe for frame in frames])
-        arguments = (output, frames, self.model.hand_branch, self._scale, self._settings)
+        intrinsics, known = self._given_intrinsics(frames)
+        try:
+            with torch.inference_mode():
+                geometry, poses, used = self.model.run_geometry(
+                    images, self._stream, [frame.keyframe for frame in frames], intrinsics,
+                    known, self._detection)
+        except ModelOutputError as exc:  # the block's frames were not added: forget them
+            self._frames_pushed -= len(frames)
+            self._last_stamp = self._accepted_stamp
+            raise ModelOutputError(f'{self._checkpoint_name()}: {exc}') from exc
+        self._accepted_stamp = frames[-1].timestamp_ns
         if self._decoder is None:
             future: Future = Future()
-            future.set_result(decode_block(*arguments))
+            future.set_result(self._hands(images, geometry, poses, used, frames))
         else:
-            future = self._decoder.submit(decode_block, *arguments)
+            for in_flight in self._decoding:  # back-pressure: one window in the worker
+                in_flight.exception()  # waits; its results are collected below
+            future = self._decoder.submit(self._hands, images, geometry, poses, used, frames)
         self._decoding.append(future)
 
+    def _hands(self, images: torch.Tensor, geometry: GeometryOutput, poses: torch.Tensor,
+               used: torch.Tensor, frames: list[PreparedFrame]) -> list[CameraSpaceFrame]:
+        """Run the hand branch on a block and split it into per-frame records."""
+        with torch.inference_mode():
+            output: CameraSpaceOutput = self.model.run_hands(images, geometry, poses, used,
+                                                             None, self._detection)
+            return split_frames(output, frames)
+
+    def _given_intrinsics(self, frames: list[PreparedFrame]
+                          ) -> tuple[torch.Tensor | None, torch.Tensor | None]:
+        """Return (1, S, 3, 3) model-size K of the frames with given intrinsics, and which."""
+        known = [frame.intrinsics is not None for frame in frames]
+        if not any(known):
+            return None, None
+        matrices = np.stack([frame.mapping.intrinsics_to_model(frame.intrinsics).matrix()
+                             if frame.intrinsics is not None else np.eye(3) for frame in frames])
+        return (torch.as_tensor(matrices, dtype=torch.float64)[None],
+                torch.tensor(known)[None])
+
     def _collect(self, wait: bool) -> list[FrameResult]:
-        """Return decoded results in order; wait for all of them when ``wait``."""
+        """Return finished results in order; wait for all of them when ``wait``."""
         results: list[FrameResult] = []
         while self._decoding and (wait or self._decoding[0].done()):
-            results.extend(self._decoding.popleft().result())
-        if self._ba is not None:
-            results = [self._ba.apply(result, self._source_images.pop(result.frame_index, None))
-                       for result in results]
+            for record in self._decoding.popleft().result():
+                results.append(self._finish(record))
         return results
+
+    def _drain(self) -> None:
+        """Wait for queued hand decoding and drop its results (reset and close)."""
+        while self._decoding:
+            self._decoding.popleft().exception()
+        self._pending.clear()
+
+    def _finish(self, record: CameraSpaceFrame) -> FrameResult:
+        """Track the frame's pose, feed BA, place its hands in the world: its final result."""
+        frame = record.frame
+        track = self.pose_track
+        track.add(frame.index, frame.timestamp_ns, record.T_raw)
+        track.observe_scale(record.depth_ratios, np.ones(len(record.depth_ratios)))
+        depth = None if record.depth_model is None else record.depth_model * track.scale
+        if self._ba is not None:
+            self._ba.fold_in(track)
+            self._ba.offer(record, track.scaled(frame.index), depth)
+        best = track.best(frame.index)
+        return FrameResult(
+            timestamp_ns=frame.timestamp_ns, frame_index=frame.index,
+            camera_pose=best.camera_pose, intrinsics=record.intrinsics,
+            hands=place_in_world(record.hands, best.camera_pose), is_keyframe=frame.keyframe,
+            depth=depth, metric_scale=best.scale,
+            raw_camera_pose=best.scaled_pose if self._ba is not None else None,
+            pose_version=best.version)
+
+    def _checkpoint_name(self) -> str:
+        """Return what the weights came from, for error messages."""
+        checkpoint = self.config.model.checkpoint
+        return (f'checkpoint {checkpoint}' if checkpoint is not None
+                else f'seeded untrained weights (seed {self.config.model.seed})')

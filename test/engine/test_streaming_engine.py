@@ -1,15 +1,22 @@
 """The streaming engine on synthetic frames with the untrained tiny model."""
 
 from dataclasses import replace
+import threading
+import time
 
+from infinihand_ros.ba.config import BAConfig
+from infinihand_ros.core.errors import EngineStateError
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.engine.config import EngineConfig
+from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
 import numpy as np
 import pytest
+import torch
 
 CONFIG = EngineConfig(keyframe_interval=2)
 NUM_FRAMES = 7
@@ -109,10 +116,155 @@ def test_predicted_field_of_view_without_intrinsics(model, frames: list) -> None
 
 def test_bundle_adjustment_keeps_the_raw_poses(model, frames: list) -> None:
     plain = _run(StreamingEngine(CONFIG, model), frames[:4])
-    with StreamingEngine(replace(CONFIG, bundle_adjustment=True), model) as engine:
+    with StreamingEngine(replace(CONFIG, bundle_adjustment=BAConfig()), model) as engine:
         adjusted = _run(engine, frames[:4])
     for a, b in zip(plain, adjusted):
         assert a.raw_camera_pose is None
         # No BA call yet (the pool has not triggered): the correction is the identity.
         np.testing.assert_allclose(b.raw_camera_pose.matrix(), a.camera_pose.matrix(), atol=1e-6)
         np.testing.assert_allclose(b.camera_pose.matrix(), a.camera_pose.matrix(), atol=1e-6)
+
+
+def test_engine_results_equal_a_direct_model_call(model, frames: list) -> None:
+    """The engine's camera-space hands and raw poses are the shared forward's, frame by frame."""
+    engine_results = _run(StreamingEngine(CONFIG, model), frames[:4])
+    stream = model.new_stream()
+    direct = []
+    with torch.inference_mode():
+        for block in ([0, 1], [2], [3]):  # two anchors together, then per frame
+            images, mappings = [], []
+            for index in block:
+                fitted, mapping = fit_image(frames[index].rgb, model.geometry.config.preprocessing,
+                                            model.geometry.config.aggregator)
+                images.append(torch.from_numpy(fitted).permute(2, 0, 1).float() / 255.0)
+                mappings.append(mapping)
+            known = torch.ones(1, len(block), dtype=torch.bool)
+            intrinsics = torch.as_tensor(np.stack([
+                m.intrinsics_to_model(frames[i].intrinsics).matrix()
+                for i, m in zip(block, mappings)]))[None]
+            flags = [index < 2 or (index - 2) % 2 == 0 for index in block]
+            output = model(torch.stack(images)[None], stream, flags, intrinsics, known)
+            for row, index in enumerate(block):
+                chosen = output.boxes.batch_index == row
+                direct.append((output.T_world_cam[0, row].numpy(),
+                               output.hands.joints_cam[chosen].numpy(),
+                               output.boxes.sides[chosen].tolist()))
+    for result, (pose, joints, sides) in zip(engine_results, direct):
+        assert result.metric_scale == 1.0  # no scale yet: the raw pose is the result's pose
+        np.testing.assert_allclose(result.camera_pose.matrix(), pose, atol=1e-6)
+        assert [hand.side for hand in result.hands] == sides
+        for hand, expected in zip(result.hands, joints):
+            np.testing.assert_allclose(hand.joints_cam, expected, atol=1e-6)
+
+
+@pytest.mark.parametrize('mode', ['per_frame', 'windowed'])
+def test_push_after_close_is_refused_without_consuming(model, frames: list, mode: str) -> None:
+    """After close() every call raises EngineStateError; close() twice is fine."""
+    engine = StreamingEngine(replace(CONFIG, mode=mode, window=2), model)
+    engine.push(frames[0].rgb, frames[0].timestamp_ns)
+    engine.close()
+    engine.close()
+    with pytest.raises(EngineStateError, match='after close'):
+        engine.push(frames[1].rgb, frames[1].timestamp_ns)
+    with pytest.raises(EngineStateError, match='after close'):
+        engine.flush()
+    assert engine.statistics['frames_pushed'] == 1
+
+
+def test_a_second_thread_inside_the_engine_is_refused(model, frames: list) -> None:
+    """Concurrent calls raise EngineStateError instead of corrupting the stream."""
+    engine = StreamingEngine(CONFIG, model)
+    inside, release = threading.Event(), threading.Event()
+    original = engine.model.run_hands
+
+    def slow_hands(*args, **kwargs):
+        inside.set()
+        release.wait(10)
+        return original(*args, **kwargs)
+
+    engine.model.run_hands = slow_hands
+    try:
+        worker = threading.Thread(target=_run, args=(engine, frames[:2]))
+        worker.start()
+        assert inside.wait(30)
+        with pytest.raises(EngineStateError, match='two threads at once'):
+            engine.push(frames[2].rgb, frames[2].timestamp_ns)
+        release.set()
+        worker.join(30)
+    finally:
+        del engine.model.run_hands
+    assert engine.statistics['frames_pushed'] == 2
+
+
+def test_bad_stamps_are_refused_and_leave_the_stream_intact(model, frames: list) -> None:
+    """Duplicate, backward and non-integer stamps raise InputError; the stream goes on."""
+    engine = StreamingEngine(CONFIG, model)
+    results = engine.push(frames[0].rgb, frames[0].timestamp_ns, frames[0].intrinsics)
+    for stamp, message in ((frames[0].timestamp_ns, 'duplicate'),
+                           (frames[0].timestamp_ns - 1, 'earlier than'),
+                           (float('nan'), 'integer nanoseconds'), (None, 'integer')):
+        with pytest.raises(InputError, match=message):
+            engine.push(frames[1].rgb, stamp, frames[1].intrinsics)
+    for frame in frames[1:3]:
+        results += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+    results += engine.flush()
+    clean = _run(StreamingEngine(CONFIG, model), frames[:3])
+    assert [r.frame_index for r in results] == [0, 1, 2]
+    for a, b in zip(clean, results):
+        np.testing.assert_allclose(a.camera_pose.matrix(), b.camera_pose.matrix(), atol=1e-6)
+
+
+def test_non_finite_outputs_name_the_weights_and_leave_the_stream(frames: list) -> None:
+    """Broken (NaN) weights: ModelOutputError names them; restored, nothing has changed."""
+    model = build_model(CONFIG)
+    clean = _run(StreamingEngine(CONFIG, model), frames[:4])
+    engine = StreamingEngine(CONFIG, model)
+    results = []
+    for frame in frames[:3]:
+        results += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+    weight = model.geometry.aggregator.frame_blocks[0].attn.qkv.weight
+    saved = weight.detach().clone()
+    with torch.no_grad():
+        weight.fill_(float('nan'))
+    with pytest.raises(ModelOutputError, match='seeded untrained weights .*not finite'):
+        engine.push(frames[3].rgb, frames[3].timestamp_ns, frames[3].intrinsics)
+    with torch.no_grad():
+        weight.copy_(saved)
+    results += engine.push(frames[3].rgb, frames[3].timestamp_ns, frames[3].intrinsics)
+    results += engine.flush()
+    assert [r.frame_index for r in results] == [0, 1, 2, 3]
+    for a, b in zip(clean, results):
+        np.testing.assert_allclose(a.camera_pose.matrix(), b.camera_pose.matrix(), atol=1e-6)
+
+
+def test_windowed_mode_keeps_at_most_one_window_decoding(model, frames: list) -> None:
+    """Back-pressure: with a slow hand branch the next window waits, nothing piles up."""
+    engine = StreamingEngine(replace(CONFIG, mode='windowed', window=1), model)
+    original = engine.model.run_hands
+
+    def slow_hands(*args, **kwargs):
+        time.sleep(0.2)
+        return original(*args, **kwargs)
+
+    engine.model.run_hands = slow_hands
+    try:
+        in_flight, results = [], []
+        for frame in frames:
+            results += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+            in_flight.append(engine.statistics['windows_in_flight'])
+        results += engine.flush()
+    finally:
+        del engine.model.run_hands
+        engine.close()
+    assert max(in_flight) == 1 and len(results) == NUM_FRAMES
+
+
+def test_flush_during_the_anchors_returns_every_frame(model, frames: list) -> None:
+    """Flushing before the anchors are complete still gives a result per pushed frame."""
+    engine = StreamingEngine(replace(CONFIG, mode='windowed', window=3), model)
+    results = engine.push(frames[0].rgb, frames[0].timestamp_ns) + engine.flush()
+    for frame in frames[1:4]:
+        results += engine.push(frame.rgb, frame.timestamp_ns)
+    results += engine.flush()
+    engine.close()
+    assert [r.frame_index for r in results] == [0, 1, 2, 3]

@@ -1,0 +1,186 @@
+"""The one authority for camera poses: raw network poses, the metric scale and BA corrections.
+
+Per frame the track keeps the raw camera-to-world pose the network predicted (model units). The
+best pose of a frame is ``D(t) @ S(s) @ T_raw``: ``S(s)`` scales the translation by the
+trajectory's metric scale ``s`` (metres per model unit; one value for the whole track, so every
+frame is rescaled together, never frame by frame) and ``D(t)`` is the bundle-adjustment
+correction of the frame's time (rigid, blended in for live frames, see ``ba/corrections.py``).
+
+The scale starts at ``metric_scale.initial`` (model units). During the warm-up the estimator
+collects hand/depth ratios; once it has ``min_samples`` the scale is set to the estimate in one
+step. After that the applied scale follows the estimate smoothly: each frame it moves towards it
+by at most ``max_scale_step`` (relative), and only when the estimate differs by more than
+``scale_deadband``. Every change of the scale or of the BA corrections increments ``version``,
+and every pose read from the track carries the version it was computed with. Memory is bounded:
+the track remembers the newest ``capacity`` frames.
+"""
+
+from collections import OrderedDict
+from dataclasses import dataclass
+from typing import Final
+
+from infinihand_ros.ba.corrections import CorrectionTrack
+from infinihand_ros.core.config import require_at_least
+from infinihand_ros.core.config import require_positive
+from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.engine.metric_scale import MetricScaleConfig
+from infinihand_ros.engine.metric_scale import MetricScaleEstimator
+from infinihand_ros.engine.metric_scale import ScaleEstimate
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+SCALE_STATES: Final = ('warmup', 'tracking')
+
+
+@dataclass(frozen=True)
+class PoseTrackConfig:
+    """Settings of the pose track (section ``pose_track`` of the engine config).
+
+    Attributes:
+        capacity: frames remembered (newest first out of the track when it is full).
+        max_scale_step: after the warm-up, the applied scale changes by at most this fraction
+            per frame (0.01: at most 1 % per frame).
+        scale_deadband: the applied scale is left alone while the estimate is within this
+            fraction of it (no version change for noise).
+
+    """
+
+    capacity: int = 1024
+    max_scale_step: float = 0.01
+    scale_deadband: float = 0.002
+
+    def __post_init__(self) -> None:
+        require_at_least('pose_track', 1, capacity=self.capacity)
+        require_positive('pose_track', max_scale_step=self.max_scale_step)
+        require_at_least('pose_track', 0.0, scale_deadband=self.scale_deadband)
+        if not self.scale_deadband < self.max_scale_step < 1.0:
+            raise ConfigError(f'pose_track: need scale_deadband < max_scale_step < 1, got '
+                              f'{self.scale_deadband} and {self.max_scale_step}')
+
+
+@dataclass(frozen=True)
+class TrackedPose:
+    """A frame's best pose and what it was computed from.
+
+    Attributes:
+        camera_pose: best camera-to-world pose, metres (metric scale and BA applied).
+        scaled_pose: the metrically scaled raw pose, before BA corrections.
+        scale: metres per model unit used.
+        version: the track's version when the pose was read.
+
+    """
+
+    camera_pose: CameraPose
+    scaled_pose: CameraPose
+    scale: float
+    version: int
+
+
+@dataclass(frozen=True)
+class _Entry:
+    timestamp_ns: int
+    T_raw: np.ndarray
+
+
+class PoseTrack:
+    """Raw poses, one metric scale and BA corrections of one stream (not thread-safe)."""
+
+    def __init__(self, config: PoseTrackConfig, scale_config: MetricScaleConfig,
+                 blend_s: float = 0.0) -> None:
+        """Start an empty track.
+
+        Args:
+            config: capacity and scale smoothing.
+            scale_config: the running metric-scale estimate's settings.
+            blend_s: frame time over which live frames blend into a new BA correction.
+
+        """
+        self.config = config
+        self.estimator = MetricScaleEstimator(scale_config)
+        self.corrections = CorrectionTrack(blend_s)
+        self._entries: OrderedDict[int, _Entry] = OrderedDict()
+        self._scale = scale_config.initial
+        self._state = SCALE_STATES[0]
+        self.version = 0
+
+    @property
+    def scale(self) -> float:
+        """Return the applied metric scale, metres per model unit."""
+        return self._scale
+
+    @property
+    def scale_state(self) -> str:
+        """Return 'warmup' (scale not yet estimated) or 'tracking'."""
+        return self._state
+
+    @property
+    def oldest_timestamp_ns(self) -> int | None:
+        """Return the stamp of the oldest frame still in the track, or None when empty."""
+        return next(iter(self._entries.values())).timestamp_ns if self._entries else None
+
+    def scale_estimate(self) -> ScaleEstimate:
+        """Return the estimator's current estimate (what the applied scale follows)."""
+        return self.estimator.estimate()
+
+    def add(self, frame_index: int, timestamp_ns: int, T_raw: np.ndarray) -> None:
+        """Record a frame's raw camera-to-world pose (4, 4), model units."""
+        self._entries[frame_index] = _Entry(timestamp_ns, np.array(T_raw, dtype=np.float64))
+        while len(self._entries) > self.config.capacity:
+            self._entries.popitem(last=False)
+
+    def observe_scale(self, metric_depths: np.ndarray, model_depths: np.ndarray) -> None:
+        """Feed hand depths (m) and model depths at the same pixels; update the applied scale."""
+        self.estimator.observe(metric_depths, model_depths)
+        estimate = self.estimator.estimate()
+        if estimate.samples < self.estimator.config.min_samples:
+            return
+        if self._state == 'warmup':
+            self._state = SCALE_STATES[1]
+            self._set_scale(estimate.scale)
+            return
+        ratio = estimate.scale / self._scale
+        if abs(ratio - 1.0) <= self.config.scale_deadband:
+            return
+        step = self.config.max_scale_step
+        self._set_scale(self._scale * float(np.clip(ratio, 1.0 / (1.0 + step), 1.0 + step)))
+
+    def update_corrections(self, timestamps_ns: np.ndarray, T_refined: np.ndarray,
+                           T_submitted: np.ndarray) -> None:
+        """Take a finished BA call: refined and submitted (scaled) keyframe poses (K, 4, 4)."""
+        self.corrections.update(timestamps_ns, T_refined, T_submitted)
+        self.version += 1
+
+    def scaled(self, frame_index: int) -> CameraPose:
+        """Return the frame's raw pose with the metric scale applied (BA's input pose).
+
+        Raises:
+            KeyError: for a frame that is not (or no longer) in the track.
+
+        """
+        transform = self._entries[frame_index].T_raw.copy()
+        transform[:3, 3] *= self._scale
+        return CameraPose.from_matrix(transform)
+
+    def best(self, frame_index: int, live: bool = True) -> TrackedPose:
+        """Return the frame's best pose; ``live`` blends new BA corrections in (no jumps).
+
+        Raises:
+            KeyError: for a frame that is not (or no longer) in the track.
+
+        """
+        entry = self._entries[frame_index]
+        scaled = self.scaled(frame_index)
+        if not len(self.corrections):
+            return TrackedPose(scaled, scaled, self._scale, self.version)
+        matrix = scaled.matrix()
+        corrected = (self.corrections.correct_live(entry.timestamp_ns, matrix) if live
+                     else self.corrections.correct(np.array([entry.timestamp_ns]),
+                                                   matrix[None])[0])
+        # Corrections are rigid; re-orthonormalise away the rounding of their interpolation.
+        pose = CameraPose(Rotation.from_matrix(corrected[:3, :3]).as_matrix(), corrected[:3, 3])
+        return TrackedPose(pose, scaled, self._scale, self.version)
+
+    def _set_scale(self, scale: float) -> None:
+        self._scale = float(scale)
+        self.version += 1
