@@ -1,10 +1,19 @@
-"""The whole InfiniHand model: the geometry branch and the hand branch, built from their configs.
+"""The whole InfiniHand model and its camera-space pass, shared by the engine and training.
 
-``InfiniHandModel`` only holds the two branches (state-dict prefixes ``geometry.`` and
-``hand_branch.``); the engine runs them. ``build_infinihand_model`` makes a seeded model without
-touching the caller's random state, and ``load_branch_configs`` resolves config names or paths.
+``InfiniHandModel.forward`` is the paper's per-block pass (Sec. 3.2): the geometry branch
+(camera pose encoding, depth, hand masks, patch features) through the stream's memory, the
+camera poses and intrinsics decoded from the encodings (given intrinsics win), hand boxes from
+the masks (or given boxes, as training does), then the hand branch (crops, appearance encoder,
+geometric adapter, fusion, MANO and 2D heads, LSP, eq. 6). Its two halves, ``run_geometry`` and
+``run_hands``, are public so a pipelined caller can overlap them; the result is the same.
+World placement (eq. 9) is not part of the model: it needs the trajectory's metric scale and BA
+corrections, which the engine tracks. State-dict prefixes are ``geometry.`` and ``hand_branch.``.
+``build_infinihand_model`` makes a seeded model without touching the caller's random state, and
+``load_branch_configs`` resolves config names or paths.
 """
 
+from dataclasses import dataclass
+import math
 from pathlib import Path
 from typing import Final
 
@@ -14,9 +23,16 @@ from infinihand_ros.model.config import GeometryConfig
 from infinihand_ros.model.config import load_geometry_config
 from infinihand_ros.model.config import named_config_path
 from infinihand_ros.model.geometry_model import GeometryModel
+from infinihand_ros.model.geometry_model import GeometryOutput
+from infinihand_ros.model.geometry_stream import GeometryStream
 from infinihand_ros.model.hand.config import HandBranchConfig
 from infinihand_ros.model.hand.config import load_hand_branch_config
+from infinihand_ros.model.hand.hand_branch import HandBoxes
 from infinihand_ros.model.hand.hand_branch import HandBranch
+from infinihand_ros.model.hand.hand_branch import HandBranchOutput
+from infinihand_ros.model.heads.mask_head import masks_to_boxes
+from infinihand_ros.model.pose_encoding import encoding_to_cam_to_world
+from infinihand_ros.model.pose_encoding import FOV_H
 import torch
 from torch import nn
 
@@ -25,6 +41,50 @@ GEOMETRY_PREFIX: Final = 'geometry.'
 HAND_BRANCH_PREFIX: Final = 'hand_branch.'
 #: State-dict prefix of the hand models' tensors (MANO data when real MANO is used): never saved.
 HAND_MODELS_PREFIX: Final = 'hand_branch.hand_models.'
+
+
+@dataclass(frozen=True)
+class HandDetection:
+    """How hands are found in the mask head's output (paper Sec. 3.2, appendix A).
+
+    Attributes:
+        mask_threshold: a pixel belongs to a hand when its probability exceeds this.
+        min_pixels: a mask with fewer hand pixels gives no box.
+        presence_threshold: a mask whose peak probability is below this is no detection.
+        fov_range_rad: predicted fields of view are clamped to this range (the camera head's
+            ReLU allows 0, which no camera has).
+
+    """
+
+    mask_threshold: float = 0.5
+    min_pixels: int = 16
+    presence_threshold: float = 0.5
+    fov_range_rad: tuple[float, float] = (math.radians(5.0), math.radians(170.0))
+
+
+@dataclass(frozen=True)
+class CameraSpaceOutput:
+    """The camera-space results of one block of B x S frames (hands indexed over B*S frames).
+
+    Attributes:
+        geometry: the geometry branch's outputs (depth and masks at the model size).
+        T_world_cam: (B, S, 4, 4) float64 camera-to-world poses, model (scale-free) units, as
+            decoded from the pose encodings in the checkpoint's pose direction.
+        intrinsics: (B, S, 3, 3) float64 K at the model size used for the hands: the given
+            intrinsics where known, else the predicted (FoV-clamped) ones.
+        boxes: the hand boxes the hand branch ran on (tight, model pixels), with their frame
+            (``batch_index`` over the B*S frames, batch-major) and side.
+        presence: (N,) each box's peak mask probability (1.0 for given boxes).
+        hands: the hand branch's per-box outputs (camera-frame MANO, joints, 2D joints).
+
+    """
+
+    geometry: GeometryOutput
+    T_world_cam: torch.Tensor
+    intrinsics: torch.Tensor
+    boxes: HandBoxes
+    presence: torch.Tensor
+    hands: HandBranchOutput
 
 
 class InfiniHandModel(nn.Module):
@@ -45,6 +105,81 @@ class InfiniHandModel(nn.Module):
                               'feature_dim=geometry.config.aggregator.output_dim')
         self.geometry = geometry
         self.hand_branch = hand_branch
+
+    def new_stream(self) -> GeometryStream:
+        """Return an empty stream (memories and frame counters) for one sequence."""
+        return GeometryStream(self.geometry)
+
+    def forward(self, images: torch.Tensor, stream: GeometryStream,
+                keyframe: bool | list[bool] = True, intrinsics: torch.Tensor | None = None,
+                intrinsics_known: torch.Tensor | None = None, boxes: HandBoxes | None = None,
+                detection: HandDetection | None = None) -> CameraSpaceOutput:
+        """Run the camera-space pass on one block of frames.
+
+        Args:
+            images: (B, S, 3, H, W) float RGB in [0, 1] at the model size.
+            stream: the sequence's stream (from ``new_stream``); the block is added to it.
+            keyframe: one flag for all S frames or one per frame (see ``GeometryStream``).
+            intrinsics: (B, S, 3, 3) known K at the model size, or None to use the predicted.
+            intrinsics_known: (B, S) bool, which of ``intrinsics`` to use (all if None).
+            boxes: hand boxes to use instead of the mask head's (training), tight, model
+                pixels, ``batch_index`` over the B*S frames.
+            detection: thresholds of mask-based detection and the FoV clamp (defaults if
+                None).
+
+        Raises:
+            InputError: for inputs of the wrong shape.
+            ModelOutputError: for non-finite geometry outputs (the stream is left unchanged).
+
+        """
+        geometry, T_world_cam, used_intrinsics = self.run_geometry(
+            images, stream, keyframe, intrinsics, intrinsics_known, detection)
+        return self.run_hands(images, geometry, T_world_cam, used_intrinsics, boxes, detection)
+
+    def run_geometry(self, images: torch.Tensor, stream: GeometryStream,
+                     keyframe: bool | list[bool] = True, intrinsics: torch.Tensor | None = None,
+                     intrinsics_known: torch.Tensor | None = None,
+                     detection: HandDetection | None = None
+                     ) -> tuple[GeometryOutput, torch.Tensor, torch.Tensor]:
+        """Return the geometry outputs, camera-to-world poses and the intrinsics for the hands."""
+        detection = detection or HandDetection()
+        geometry = stream.step(images, keyframe)
+        height, width = images.shape[-2:]
+        encoding = geometry.pose_encoding.double().clone()
+        encoding[..., FOV_H:] = encoding[..., FOV_H:].clamp(*detection.fov_range_rad)
+        T_world_cam, predicted = encoding_to_cam_to_world(encoding, height, width,
+                                                          self.geometry.config.pose_direction)
+        if intrinsics is not None:
+            given = intrinsics.to(predicted)
+            known = (torch.ones(given.shape[:2], dtype=torch.bool, device=given.device)
+                     if intrinsics_known is None else intrinsics_known.to(given.device))
+            predicted = torch.where(known[..., None, None], given, predicted)
+        return geometry, T_world_cam, predicted
+
+    def run_hands(self, images: torch.Tensor, geometry: GeometryOutput, T_world_cam: torch.Tensor,
+                  intrinsics: torch.Tensor, boxes: HandBoxes | None = None,
+                  detection: HandDetection | None = None) -> CameraSpaceOutput:
+        """Find the hands (unless ``boxes`` are given) and run the hand branch on them."""
+        detection = detection or HandDetection()
+        masks = geometry.hand_masks.flatten(0, 1)  # (B*S, 2, H, W)
+        if boxes is None:
+            boxes, presence = _detect_hands(masks, detection)
+        else:
+            presence = torch.ones(boxes.sides.shape, dtype=masks.dtype, device=masks.device)
+        features = geometry.patch_features.flatten(0, 1)
+        hands = self.hand_branch(images.flatten(0, 1), features,
+                                 intrinsics.flatten(0, 1).to(features.dtype), boxes)
+        return CameraSpaceOutput(geometry, T_world_cam, intrinsics, boxes, presence, hands)
+
+
+def _detect_hands(masks: torch.Tensor, detection: HandDetection
+                  ) -> tuple[HandBoxes, torch.Tensor]:
+    """Return the tight boxes of the present hands in (F, 2, H, W) masks and their peaks."""
+    peak = masks.amax(dim=(-2, -1))
+    tight, valid = masks_to_boxes(masks, detection.mask_threshold, detection.min_pixels,
+                                  expand=1.0)  # the hand branch expands boxes itself
+    frame, side = torch.nonzero(valid & (peak > detection.presence_threshold), as_tuple=True)
+    return HandBoxes(tight[frame, side], frame, side), peak[frame, side]
 
 
 def build_infinihand_model(geometry_config: GeometryConfig, hand_config: HandBranchConfig,
