@@ -22,7 +22,10 @@ from infinihand_ros.core import geometry
 from infinihand_ros.core import topics
 from infinihand_ros.core.atomic_io import atomic_directory
 from infinihand_ros.core.atomic_io import check_writable_location
+from infinihand_ros.core.config import dump_config
 from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.engine.config import ENGINE_SECTION
+from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth import cli
@@ -38,6 +41,8 @@ SAME_SEQUENCE_TOLERANCE_M: Final = 1e-9
 #: File the demo writes into its output directory; only a directory holding it (or an empty or
 #: missing one) is replaced by a later run, so the demo never deletes what it did not write.
 OUTPUT_MARKER: Final = '.infinihand_demo'
+#: The resolved engine configuration the demo ran with, saved beside its outputs.
+ENGINE_CONFIG_FILE: Final = 'engine_config.yaml'
 
 
 def read_ground_truth(bag: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -71,20 +76,22 @@ def describe_bag(bag: Path) -> str:
     return '\n'.join(lines)
 
 
-def run_engine(bag: Path) -> str:
+def run_engine(bag: Path, config: EngineConfig) -> str:
     """Stream the bag's camera frames through the engine; return a one-line summary."""
-    frames = list(read_camera_frames(bag))
-    results = []
+    results = frames = hands = 0
     start = time.perf_counter()
-    with StreamingEngine(load_engine_config()) as engine:
-        for frame in frames:
-            results += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
-        results += engine.flush()
-        config = engine.config
+    with StreamingEngine(config) as engine:
+        for frame in read_camera_frames(bag):  # streamed: never the whole bag in memory
+            frames += 1
+            for result in engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics):
+                results += 1
+                hands += len(result.hands)
+        for result in engine.flush():
+            results += 1
+            hands += len(result.hands)
     elapsed = time.perf_counter() - start
-    hands = sum(len(result.hands) for result in results)
-    return (f'Engine ({config.geometry} model, untrained seeded weights, {config.mode} mode): '
-            f'{len(results)} results for {len(frames)} frames at {len(frames) / elapsed:.1f} '
+    return (f'Engine ({config.model.geometry} model, untrained seeded weights, {config.mode} '
+            f'mode): {results} results for {frames} frames at {frames / elapsed:.1f} '
             f'frames/s, {hands} hand detections (meaningless until trained weights exist)')
 
 
@@ -111,12 +118,15 @@ def run(out: Path, bag: Path) -> str:
     settings = load_sample_settings()
     report = ['Embedded sample bag:', describe_bag(bag)]
     cameras, wrists, visible = read_ground_truth(bag)
+    engine_config = load_engine_config()
     with atomic_directory(out, overwrite=True) as work:
         summary = cli.generate(settings.synth, settings.spec.seed, settings.spec.frames, work,
                                settings.bag)
         fresh_cameras, fresh_wrists, _ = read_ground_truth(work / cli.BAG_DIR)
         (work / OUTPUT_MARKER).write_text('Written by python -m infinihand_ros.demo, which '
                                           'replaces this directory on its next run.\n')
+        (work / ENGINE_CONFIG_FILE).write_text(dump_config(engine_config, ENGINE_SECTION),
+                                               encoding='utf-8')
     if fresh_cameras.shape != cameras.shape:
         raise InfiniHandError(f'{bag} holds {len(cameras)} frames but its settings give '
                               f'{len(fresh_cameras)}; regenerate it with '
@@ -139,8 +149,9 @@ def run(out: Path, bag: Path) -> str:
         'of frames',
         f'  previews: {out / cli.FRAMES_PREVIEW}, {out / cli.TRAJECTORY_PREVIEW}',
         f'  bag: {out / cli.BAG_DIR}; training samples: {out / cli.SAMPLES_DIR}',
+        f'  resolved engine config: {out / ENGINE_CONFIG_FILE}',
         '',
-        run_engine(bag),
+        run_engine(bag, engine_config),
     ]
     return '\n'.join(report)
 

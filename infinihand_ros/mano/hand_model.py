@@ -33,7 +33,7 @@ logger = logging.getLogger(__name__)
 
 #: Accepted values of ``HandModelConfig.kind``.
 HAND_MODEL_KINDS: Final = ('builtin', 'mano')
-#: Top-level key of the hand-model section in ``config/hand_model.yaml``.
+#: Top-level key of a YAML file holding only a hand-model section (the engine's is nested).
 CONFIG_SECTION: Final = 'hand_model'
 #: Extensions tried, in order, for ``MANO_{LEFT,RIGHT}`` inside ``mano_dir``.
 MANO_FILE_SUFFIXES: Final = ('.pkl', '.npz')

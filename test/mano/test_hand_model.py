@@ -8,6 +8,7 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.mano import builtin
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.mano.hand_model import build_hand_model
@@ -22,11 +23,8 @@ import numpy as np
 import pytest
 import torch
 
-REPO_CONFIG = Path(__file__).resolve().parents[2] / 'config' / 'hand_model.yaml'
-
-
 def test_repository_config_selects_the_builtin_model() -> None:
-    config = load_hand_model_config(REPO_CONFIG)
+    config = load_engine_config().model.hand_model
     assert config == HandModelConfig(kind='builtin', mano_dir='')
     model = build_hand_model(config, LEFT)
     assert isinstance(model, BuiltinHandModel) and isinstance(model, HandModel)
