@@ -123,6 +123,9 @@ class DPTHead(nn.Module):
             nn.Identity(),
             nn.Conv2d(channels[3], channels[3], 3, stride=2, padding=1)))
         self.scratch = _Scratch(channels, config.features, config.head_features, output_dim)
+        # Channels-last conv weights: oneDNN runs these small-channel convs about 2x faster
+        # on the CPU (same values; loading a state dict keeps the layout).
+        self.to(memory_format=torch.channels_last)
         # Fixed UV embeddings by (h, w, channels, aspect, device): recomputing the full-size
         # one costs as much as a conv layer per frame.
         self._uv_cache: dict[tuple[int, int, int, float, torch.device], torch.Tensor] = {}
