@@ -7,8 +7,8 @@ thousand frames may not be slower than the first thousand (the old concatenating
 """
 
 from dataclasses import replace
-from pathlib import Path
 import os
+from pathlib import Path
 import time
 
 from infinihand_ros.engine.config import EngineConfig

@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 import torch
 
+
 def test_repository_config_selects_the_builtin_model() -> None:
     config = load_engine_config().model.hand_model
     assert config == HandModelConfig(kind='builtin', mano_dir='')
