@@ -24,7 +24,7 @@ BA_SECTION: Final = 'ba'
 MIN_KLT_WINDOW_PX: Final = 3
 #: Bits in an ORB descriptor: the largest meaningful Hamming distance.
 ORB_DESCRIPTOR_BITS: Final = 256
-#: Largest CPU niceness of the BA thread (Linux's lowest priority).
+#: Largest CPU niceness of the BA process (Linux's lowest priority).
 MAX_NICENESS: Final = 19
 
 
@@ -179,10 +179,10 @@ class CorrectionConfig:
 
 @dataclass(frozen=True)
 class WorkerConfig:
-    """How the background BA thread shares the machine with the stream.
+    """How the background BA process shares the machine with the stream.
 
     Attributes:
-        niceness: CPU niceness of the BA thread (0..19); 19 keeps the stream's latency but lets
+        niceness: CPU niceness of the BA process (0..19); 19 keeps the stream's latency but lets
             BA fall behind on a saturated CPU, 0 shares the CPU evenly (offline conversion).
         max_queued_selections: pool selections allowed to wait; older ones are dropped.
 

@@ -12,6 +12,10 @@ frame after an update, their correction moves along the geodesic from the correc
 last to the newest one over ``blend_s`` seconds of frame time (BA.md, "Feeding refined poses
 back"). ``corrections``/``correct`` always give the newest estimate (for BA's initial poses and
 for evaluation); only ``correct_live`` blends.
+
+On an unbounded stream the track is told what it may forget: ``prune(keep_from_ns)`` drops the
+corrections no query from that stamp on can use (a blend keeps its own start), and
+``max_entries`` caps the history; per-frame cost never depends on how much is held.
 """
 
 from dataclasses import dataclass
@@ -74,12 +78,16 @@ def interpolate_corrections(key_times_ns: np.ndarray, key_corrections: np.ndarra
     """
     keys = np.asarray(key_times_ns, dtype=np.int64)
     corrections = as_array(key_corrections, 'key corrections', (len(keys), 4, 4))
-    times = np.asarray(times_ns, dtype=np.int64).reshape(-1)
     if len(keys) == 0:
         raise InputError('interpolate_corrections: no refined keyframe; run BA first or use '
                          'the raw poses')
     if np.any(np.diff(keys) <= 0):
         raise InputError('interpolate_corrections: keyframe times must be strictly increasing')
+    return _interpolate(keys, corrections, np.asarray(times_ns, dtype=np.int64).reshape(-1))
+
+
+def _interpolate(keys: np.ndarray, corrections: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """Interpolate checked keyframe corrections (K >= 1, increasing ``keys``) at ``times`` (T,)."""
     previous = np.searchsorted(keys, times, side='right') - 1
     out = corrections[np.clip(previous, 0, len(keys) - 1)]
     segment = np.clip(previous, 0, max(len(keys) - 2, 0))
@@ -93,60 +101,140 @@ def interpolate_corrections(key_times_ns: np.ndarray, key_corrections: np.ndarra
 
 @dataclass(frozen=True)
 class _Blend:
-    """A blend of live corrections in progress: from ``origin`` at ``start_ns`` on."""
+    """A blend of live corrections in progress: from ``origin`` at ``start_ns`` to ``target``.
+
+    ``step`` is ``Log(origin^-1 target)``, kept so that each live frame costs one exponential.
+    """
 
     start_ns: int
     origin: np.ndarray  # (4, 4) the live correction published before the update
+    target: np.ndarray  # (4, 4) the correction the blend moves to
+    step: np.ndarray  # (4, 4) similarity_log(origin^-1 @ target)
+
+
+def _blend_towards(start_ns: int, origin: np.ndarray, target: np.ndarray) -> _Blend:
+    """Return a blend from ``origin`` (4, 4) at ``start_ns`` to ``target`` (4, 4)."""
+    return _Blend(start_ns, origin, target, similarity_log(np.linalg.inv(origin) @ target))
 
 
 class CorrectionTrack:
-    """Corrections of every keyframe refined so far, keyed by keyframe timestamp."""
+    """Corrections of the refined keyframes that can still matter, keyed by keyframe timestamp.
 
-    def __init__(self, blend_s: float = 0.0) -> None:
+    The corrections are kept in two arrays sorted by stamp and merged on each ``update`` (once
+    per BA call), so queries never sort or stack: ``correct_live`` costs the same whatever the
+    stream's length. What the track holds is bounded by ``prune`` (entries no query at or after
+    a stamp can use are dropped, results for those queries stay exactly the same) and, as a
+    safety net, by ``max_entries``.
+    """
+
+    def __init__(self, blend_s: float = 0.0, max_entries: int | None = None) -> None:
         """Start without corrections (raw poses pass through unchanged).
 
         Args:
             blend_s: live corrections move to a new BA result over this much frame time (s);
                 0 applies it at once.
+            max_entries: most corrections kept (the oldest go first), or None for no limit
+                (then only ``prune`` bounds the history). Queries older than the oldest kept
+                keyframe take its correction.
 
         Raises:
-            ValueError: for a negative ``blend_s``.
+            ValueError: for a negative ``blend_s`` or a ``max_entries`` below 2.
 
         """
         if blend_s < 0:
             raise ValueError(f'CorrectionTrack: blend_s must be >= 0 s, got {blend_s}')
+        if max_entries is not None and max_entries < 2:
+            raise ValueError(f'CorrectionTrack: max_entries must be >= 2 or None, got '
+                             f'{max_entries}')
         self._blend_ns = int(round(blend_s * 1e9))
-        self._by_time: dict[int, np.ndarray] = {}
+        self._max_entries = max_entries
+        self._times = np.zeros(0, dtype=np.int64)  # (N,) strictly increasing stamps (ns)
+        self._values = np.zeros((0, 4, 4))  # (N, 4, 4) their corrections
         self._last_live = np.eye(4)
         self._blend_pending = False
         self._blend: _Blend | None = None
 
     def __len__(self) -> int:
-        """Return the number of corrected keyframes."""
-        return len(self._by_time)
+        """Return the number of corrected keyframes held."""
+        return len(self._times)
+
+    @property
+    def oldest_ns(self) -> int | None:
+        """Stamp of the oldest correction held (ns), or None before any BA result."""
+        return int(self._times[0]) if len(self._times) else None
+
+    @property
+    def newest_ns(self) -> int | None:
+        """Stamp of the newest correction held (ns), or None before any BA result."""
+        return int(self._times[-1]) if len(self._times) else None
 
     def update(self, times_ns: np.ndarray, T_refined: np.ndarray, T_raw: np.ndarray) -> None:
         """Record refined poses (K, 4, 4) of keyframes with raw poses (K, 4, 4) at ``times_ns``.
 
-        A keyframe refined again replaces its earlier correction. The next ``correct_live``
-        call starts a blend from the live correction published last.
+        A keyframe refined again replaces its earlier correction (within one call, the last
+        one given wins). The next ``correct_live`` call starts a blend from the live correction
+        published last.
+
+        Raises:
+            InputError: when the stamps (K,) do not match the poses.
+
         """
-        corrections = keyframe_corrections(T_refined, T_raw)
-        for time_ns, correction in zip(np.asarray(times_ns, dtype=np.int64), corrections):
-            self._by_time[int(time_ns)] = correction
+        times = np.asarray(times_ns, dtype=np.int64).reshape(-1)
+        corrections = keyframe_corrections(T_refined, T_raw).reshape(-1, 4, 4)
+        if len(times) != len(corrections):
+            raise InputError(f'CorrectionTrack.update: {len(times)} stamps for '
+                             f'{len(corrections)} poses; pass one stamp per keyframe')
+        new_times, last = np.unique(times[::-1], return_index=True)
+        new_values = corrections[::-1][last]
+        kept = ~np.isin(self._times, new_times, assume_unique=True)
+        old_times, old_values = self._times[kept], self._values[kept]
+        where = np.searchsorted(old_times, new_times)
+        self._times = np.insert(old_times, where, new_times)
+        self._values = np.insert(old_values, where, new_values, axis=0)
+        if self._max_entries is not None and len(self._times) > self._max_entries:
+            self._keep_from_index(len(self._times) - self._max_entries)
         self._blend_pending = self._blend_ns > 0
+
+    def prune(self, keep_from_ns: int) -> int:
+        """Drop the corrections no query at or after ``keep_from_ns`` can use.
+
+        Kept: every correction from ``keep_from_ns`` on, the newest one before it (the start
+        of the segment that ``keep_from_ns`` falls in) and always the newest one, so
+        ``corrections``/``correct`` at stamps >= ``keep_from_ns`` and every later live
+        correction (blends included) are exactly what they were. A stream should pass the
+        oldest stamp it may still query: the oldest keyframe left in the binary keyframe pool
+        (or, for live frames only, the newest refined stamp). ``is_refined`` of dropped stamps
+        answers False.
+
+        Args:
+            keep_from_ns: the oldest stamp that will still be queried (ns).
+
+        Returns:
+            The number of corrections dropped.
+
+        """
+        first = int(np.searchsorted(self._times, int(keep_from_ns), side='right')) - 1
+        return self._keep_from_index(max(first, 0))
+
+    def _keep_from_index(self, first: int) -> int:
+        """Drop the ``first`` oldest corrections; return how many were dropped."""
+        first = min(first, max(len(self._times) - 1, 0))
+        if first > 0:  # copies: the dropped entries' memory is released
+            self._times = self._times[first:].copy()
+            self._values = self._values[first:].copy()
+        return first
 
     def is_refined(self, time_ns: int) -> bool:
         """Return whether the keyframe at ``time_ns`` was refined by an earlier BA call."""
-        return int(time_ns) in self._by_time
+        index = int(np.searchsorted(self._times, int(time_ns)))
+        return index < len(self._times) and int(self._times[index]) == int(time_ns)
 
     def corrections(self, times_ns: np.ndarray) -> np.ndarray:
         """Return each time's correction (T, 4, 4); identity before any BA call."""
         times = np.asarray(times_ns, dtype=np.int64).reshape(-1)
-        if not self._by_time:
+        if not len(self._times):
             return np.broadcast_to(np.eye(4), (len(times), 4, 4)).copy()
-        keys = np.array(sorted(self._by_time))
-        return interpolate_corrections(keys, np.stack([self._by_time[k] for k in keys]), times)
+        return _interpolate(self._times, self._values, times)
 
     def correct(self, times_ns: np.ndarray, T_raw: np.ndarray) -> np.ndarray:
         """Return corrected camera-to-world poses (T, 4, 4) of raw poses (T, 4, 4)."""
@@ -159,15 +247,20 @@ class CorrectionTrack:
         correction published last; later ones move geodesically to the newest correction and
         reach it ``blend_s`` after that frame.
         """
-        target = self.corrections(np.array([time_ns]))[0]
+        time_ns = int(time_ns)
+        target = self._correction_at(time_ns)
         if self._blend_pending:
-            self._blend = _Blend(int(time_ns), self._last_live)
+            self._blend = _blend_towards(time_ns, self._last_live, target)
             self._blend_pending = False
         live = target
         if self._blend is not None:
-            fraction = (int(time_ns) - self._blend.start_ns) / self._blend_ns
+            fraction = (time_ns - self._blend.start_ns) / self._blend_ns
             if fraction < 1.0:
-                live = geodesic(self._blend.origin, target, max(fraction, 0.0))
+                if not np.array_equal(target, self._blend.target):  # a frame before the newest
+                    self._blend = _blend_towards(self._blend.start_ns, self._blend.origin,
+                                                 target)
+                live = self._blend.origin @ linalg.expm(
+                    np.float64(max(fraction, 0.0)) * self._blend.step)
             else:
                 self._blend = None
         self._last_live = live
@@ -176,3 +269,11 @@ class CorrectionTrack:
     def correct_live(self, time_ns: int, T_raw: np.ndarray) -> np.ndarray:
         """Return the corrected camera-to-world pose (4, 4) of a live frame's raw pose (4, 4)."""
         return self.live_correction(time_ns) @ np.asarray(T_raw, dtype=np.float64)
+
+    def _correction_at(self, time_ns: int) -> np.ndarray:
+        """Return one stamp's correction (4, 4); live frames after the newest keyframe are O(1)."""
+        if not len(self._times):
+            return np.eye(4)
+        if time_ns >= self._times[-1]:
+            return self._values[-1].copy()
+        return _interpolate(self._times, self._values, np.array([time_ns], dtype=np.int64))[0]

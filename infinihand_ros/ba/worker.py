@@ -1,14 +1,16 @@
-"""Bundle adjustment off the stream's thread: requests in through a queue, results out.
+"""Bundle adjustment off the stream: requests in through a queue, BA in its own process.
 
 ``plan_request`` turns a pool selection into a request (initial poses = the current corrected
 poses, gauge = the oldest keyframe refined before, and the frames the pool still holds);
 ``run_request`` builds correspondences and solves, reusing per-keyframe features from a
 ``FeatureCache`` and then evicting those of frames no later selection can contain;
-``BundleAdjustmentWorker`` runs requests in a background thread with its own cache, so
-``submit`` never waits, and hands results to a callback and/or to ``poll``. A stream should use
-``submit_selection``: the worker then plans each call when it starts, from its own correction
-track holding every earlier result, so calls queued behind a running one still start from the
-poses it refined and keep its gauge.
+``BundleAdjustmentWorker`` queues requests for a background thread that runs each one in a BA
+process (``ba/process.py``: its own interpreter, thread settings and priority), so ``submit``
+never waits, BA shares neither the interpreter lock nor thread settings with the stream, and a
+failure or crash in BA only fails that call; results go to a callback and/or to ``poll``. A
+stream should use ``submit_selection``: the worker then plans each call when it starts, from
+its own correction track holding the earlier results that can still matter, so calls queued
+behind a running one still start from the poses it refined and keep its gauge.
 """
 
 from collections import deque
@@ -16,24 +18,35 @@ from collections.abc import Callable
 from collections.abc import Iterable
 from dataclasses import dataclass
 import logging
-import os
 import queue
 import threading
 import time
 
-import cv2
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.corrections import CorrectionTrack
 from infinihand_ros.ba.correspondences import build_problem
 from infinihand_ros.ba.features import FeatureCache
 from infinihand_ros.ba.keyframe import BAOutput
 from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.ba.process import BAProcess
+from infinihand_ros.ba.process import BAProcessCrashError
+from infinihand_ros.ba.process import BAProcessError
+from infinihand_ros.ba.process import RunFunction
 from infinihand_ros.ba.solver import BundleAdjuster
+from infinihand_ros.ba.worker_statistics import WorkerState
+from infinihand_ros.ba.worker_statistics import WorkerStatistics
+from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.core.errors import InputError
 import numpy as np
-import torch
 
 logger = logging.getLogger(__name__)
+
+#: A worker whose BA process died this many calls in a row, or could not be started, gives up.
+MAX_CONSECUTIVE_CRASHES = 3
+
+
+class BAWorkerError(InfiniHandError, RuntimeError):
+    """The BA worker cannot take requests: its BA process cannot run; create a new worker."""
 
 
 @dataclass(frozen=True)
@@ -114,16 +127,30 @@ def run_request(request: BARequest, config: BAConfig,
 
 
 class BundleAdjustmentWorker:
-    """Background thread that runs BA requests in order, never more than a few behind.
+    """Background thread that runs BA requests in order in a BA process, never far behind.
 
-    The thread runs with one torch thread at the configured niceness (default 19: BA takes the
-    CPU time the stream leaves). When it falls behind, the oldest queued pool selection is
-    dropped (counted in ``dropped``): the newest selections get refined and memory stays bounded.
+    The BA process runs with one torch thread, single-threaded OpenCV and the configured
+    niceness (default 19: BA takes the CPU time the stream leaves); none of that touches the
+    calling process. When the worker falls behind, the oldest queued pool selection is dropped
+    (counted in ``dropped``): the newest selections get refined and memory stays bounded. A
+    failed call, a callback that raises or a BA process that dies is logged and counted, and
+    the next call runs (in a new process if needed); ``statistics`` tells what happened.
+
+    Attributes:
+        run_function: what the BA process runs per request (``run_request``); a subclass may
+            set another module-level function with the same signature.
+
     """
+
+    run_function: RunFunction = staticmethod(run_request)
 
     def __init__(self, config: BAConfig,
                  callback: Callable[[BAOutput], None] | None = None) -> None:
-        """Start the thread; each result goes to ``callback`` (if any) and to ``poll``."""
+        """Start the thread and the BA process; each result goes to ``callback`` and ``poll``.
+
+        The callback runs in the worker's thread; an exception it raises is logged and counted
+        in ``statistics.callback_errors``.
+        """
         self.config = config
         self._callback = callback
         self._queued: deque[BARequest | _Selection] = deque()
@@ -132,35 +159,87 @@ class BundleAdjustmentWorker:
         self._busy = False
         self._corrections = CorrectionTrack()
         self._results: queue.Queue[BAOutput] = queue.Queue()
-        self.failures = 0
-        self.dropped = 0
-        self._cache = FeatureCache(config.tracking)
+        self._counts = dict.fromkeys(('submitted', 'done', 'dropped', 'failed',
+                                      'callback_errors'), 0)
+        self._last_error: str | None = None
+        self._fatal = False
+        self._process: BAProcess | None = None
         self._thread = threading.Thread(target=self._run, name='bundle_adjustment', daemon=True)
         self._thread.start()
 
+    @property
+    def statistics(self) -> WorkerStatistics:
+        """Return the state and counters (a consistent snapshot; safe from any thread)."""
+        with self._wake:
+            return WorkerStatistics(self._state(), **self._counts,
+                                    process_starts=0 if self._process is None
+                                    else self._process.starts, last_error=self._last_error)
+
+    @property
+    def state(self) -> WorkerState:
+        """Return what the worker is doing now."""
+        with self._wake:
+            return self._state()
+
+    @property
+    def dropped(self) -> int:
+        """Return the number of selections dropped so far (also in ``statistics``)."""
+        return self._counts['dropped']
+
+    @property
+    def failures(self) -> int:
+        """Return the number of failed calls so far (also in ``statistics``)."""
+        return self._counts['failed']
+
+    @property
+    def process_id(self) -> int | None:
+        """Return the BA process's id (for diagnostics), or None when none runs."""
+        process = self._process
+        return None if process is None else process.pid
+
     def submit(self, request: BARequest) -> None:
-        """Queue a planned request and return at once."""
+        """Queue a planned request and return at once.
+
+        Raises:
+            InputError: after ``close()``.
+            BAWorkerError: when the worker failed (``state`` is 'failed').
+
+        """
         self._enqueue(request)
 
     def submit_selection(self, keyframes: list[KeyframeInput],
                          retained_ids: Iterable[int] = ()) -> None:
-        """Queue a pool selection (oldest first); it is planned when its turn comes."""
+        """Queue a pool selection (oldest first); it is planned when its turn comes.
+
+        Selections are expected from one ``BinaryKeyframePool``: each holds the pool's oldest
+        keyframe, and no later selection reaches further back, so the worker keeps only the
+        corrections from there on.
+
+        Raises:
+            InputError: after ``close()``.
+            BAWorkerError: when the worker failed (``state`` is 'failed').
+
+        """
         self._enqueue(_Selection(tuple(keyframes), tuple(int(i) for i in retained_ids)))
 
     def _enqueue(self, item: 'BARequest | _Selection') -> None:
         """Append ``item``, dropping the oldest queued selections beyond the limit."""
         with self._wake:
-            if self._closing or not self._thread.is_alive():
+            if self._closing:
                 raise InputError('BA worker: submit after close(); create a new worker')
+            if self._fatal or not self._thread.is_alive():
+                raise BAWorkerError(f'BA worker failed ({self._last_error}); nothing was '
+                                    'queued; create a new worker')
             if isinstance(item, _Selection):
                 limit = self.config.worker.max_queued_selections
                 selections = [queued for queued in self._queued if isinstance(queued, _Selection)]
                 for stale in selections[:max(0, len(selections) - limit + 1)]:
                     self._queued.remove(stale)
-                    self.dropped += 1
+                    self._counts['dropped'] += 1
                     logger.info('BA worker behind: dropped the selection of frames %s',
                                 [k.frame_id for k in stale.keyframes])
             self._queued.append(item)
+            self._counts['submitted'] += 1
             self._wake.notify()
 
     def poll(self) -> list[BAOutput]:
@@ -178,11 +257,26 @@ class BundleAdjustmentWorker:
             return len(self._queued) + int(self._busy)
 
     def close(self, timeout_s: float | None = None) -> None:
-        """Finish the queued requests, then stop the thread."""
+        """Finish the queued requests, then stop the thread and the BA process.
+
+        Args:
+            timeout_s: most seconds to wait, or None to wait for every queued call. When it
+                runs out, the running call is abandoned (its process killed, counted in
+                ``failed``) and the queued ones are dropped.
+
+        """
         with self._wake:
             self._closing = True
             self._wake.notify()
         self._thread.join(timeout_s)
+        if self._thread.is_alive():
+            with self._wake:
+                self._counts['dropped'] += len(self._queued)
+                self._queued.clear()
+            process = self._process
+            if process is not None:
+                process.kill()
+            self._thread.join()
 
     def __enter__(self) -> 'BundleAdjustmentWorker':
         """Return the running worker."""
@@ -192,17 +286,33 @@ class BundleAdjustmentWorker:
         """Close the worker."""
         self.close()
 
+    def _state(self) -> WorkerState:
+        """Return the state; the caller holds ``self._wake``."""
+        if self._fatal:
+            return WorkerState.FAILED
+        if self._queued or self._busy:
+            return WorkerState.RUNNING
+        if self._closing or not self._thread.is_alive():
+            return WorkerState.STOPPED
+        return WorkerState.IDLE
+
     def _run(self) -> None:
-        """Serve requests until closed and drained, at a low CPU priority."""
-        try:  # Linux threads are tasks: only this thread yields the CPU to the stream.
-            os.setpriority(os.PRIO_PROCESS, threading.get_native_id(),
-                           self.config.worker.niceness)
-        except (AttributeError, OSError) as exc:
-            logger.info('BA worker: could not lower its priority (%s)', exc)
-        torch.set_num_threads(1)  # per calling thread: the stream keeps its own thread count
-        # OpenCV's pool threads would run BA's image work at normal priority: keep it in this
-        # thread (process-wide; the stream's only OpenCV work is a resize per frame).
-        cv2.setNumThreads(1)
+        """Serve requests until closed and drained; give up only when BA cannot run at all."""
+        try:
+            self._process = BAProcess(self.config, self.run_function)
+            self._serve_queue()
+        except BAProcessCrashError as exc:
+            self._give_up(str(exc))
+        except Exception as exc:  # noqa: B902 - recorded as the worker's state, never silent
+            logger.exception('BA worker thread failed')
+            self._give_up(f'{type(exc).__name__}: {exc}')
+        finally:
+            if self._process is not None:
+                self._process.close()
+
+    def _serve_queue(self) -> None:
+        """Run queued items one by one until closed and drained."""
+        crashes = 0
         while True:
             with self._wake:
                 while not self._queued and not self._closing:
@@ -212,25 +322,57 @@ class BundleAdjustmentWorker:
                 item = self._queued.popleft()
                 self._busy = True
             try:
-                self._serve(item)
+                crashes = 0 if self._serve(item) else crashes + 1
             finally:
                 with self._wake:
                     self._busy = False
+            if crashes >= MAX_CONSECUTIVE_CRASHES:
+                raise BAProcessCrashError(f'the BA process died in {crashes} calls in a row; '
+                                          f'last: {self._last_error}')
 
-    def _serve(self, request: 'BARequest | _Selection') -> None:
-        """Run one request; a failed BA call is logged and counted, the thread keeps going."""
+    def _give_up(self, message: str) -> None:
+        """Mark the worker failed; queued items are dropped."""
+        logger.error('BA worker stopped: %s', message)
+        with self._wake:
+            self._fatal = True
+            self._last_error = message
+            self._counts['dropped'] += len(self._queued)
+            self._queued.clear()
+
+    def _serve(self, request: 'BARequest | _Selection') -> bool:
+        """Run one item; log and count a failure. Return False when the BA process died."""
+        frame_ids = [k.frame_id for k in request.keyframes]
         try:
             if isinstance(request, _Selection):
                 request = plan_request(list(request.keyframes), self._corrections,
                                        request.retained_ids)
-            output = run_request(request, self.config, self._cache)
+            output = self._process.call(request)
             self._corrections.update(output.timestamps_ns, output.T_world_cam_refined,
                                      output.T_world_cam_raw)
-        except Exception:  # noqa: B902 - the thread must outlive any failed call
-            self.failures += 1
-            logger.exception('BA call over frames %s failed; poses stay uncorrected',
-                             [k.frame_id for k in request.keyframes])
-            return
+            # Later selections come from the pool, which never reaches before this call's
+            # oldest keyframe: older corrections cannot matter to their plans any more.
+            self._corrections.prune(int(output.timestamps_ns.min()))
+        except Exception as exc:  # noqa: B902 - the thread must outlive any failed call
+            self._record_failure(frame_ids, exc)
+            return not isinstance(exc, BAProcessCrashError)
+        with self._wake:
+            self._counts['done'] += 1
         self._results.put(output)
         if self._callback is not None:
-            self._callback(output)
+            try:
+                self._callback(output)
+            except Exception as exc:  # noqa: B902 - a consumer's bug must not stop BA
+                logger.exception('BA result callback failed for frames %s', frame_ids)
+                with self._wake:
+                    self._counts['callback_errors'] += 1
+                    self._last_error = f'callback: {type(exc).__name__}: {exc}'
+        return True
+
+    def _record_failure(self, frame_ids: list[int], exc: Exception) -> None:
+        """Log (with the BA process's traceback, if any) and count a failed call."""
+        remote = exc.remote_traceback if isinstance(exc, BAProcessError) else ''
+        logger.error('BA call over frames %s failed; poses stay uncorrected: %s\n%s',
+                     frame_ids, exc, remote, exc_info=not remote)
+        with self._wake:
+            self._counts['failed'] += 1
+            self._last_error = f'{type(exc).__name__}: {exc}'

@@ -1,6 +1,7 @@
 """Pose corrections: exact at refined keyframes, geodesic between them, latest for live frames."""
 
 from infinihand_ros.ba.corrections import CorrectionTrack
+from infinihand_ros.ba.corrections import geodesic
 from infinihand_ros.ba.corrections import interpolate_corrections
 from infinihand_ros.ba.corrections import keyframe_corrections
 from infinihand_ros.ba.corrections import similarity_log
@@ -123,3 +124,133 @@ def test_negative_blend_time_is_refused() -> None:
     """A negative blend time names the value."""
     with pytest.raises(ValueError, match='got -0.1'):
         CorrectionTrack(blend_s=-0.1)
+
+
+class _OldTrack:
+    """The correction history as kept before pruning (a dict sorted on every query): the oracle."""
+
+    def __init__(self, blend_s: float) -> None:
+        self.by_time: dict[int, np.ndarray] = {}
+        self.blend_ns = int(round(blend_s * 1e9))
+        self.last_live, self.pending, self.blend = np.eye(4), False, None
+
+    def update(self, times_ns: np.ndarray, T_refined: np.ndarray, T_raw: np.ndarray) -> None:
+        for time_ns, correction in zip(times_ns, keyframe_corrections(T_refined, T_raw)):
+            self.by_time[int(time_ns)] = correction
+        self.pending = self.blend_ns > 0
+
+    def corrections(self, times_ns: np.ndarray) -> np.ndarray:
+        keys = np.array(sorted(self.by_time))
+        return interpolate_corrections(keys, np.stack([self.by_time[k] for k in keys]), times_ns)
+
+    def live_correction(self, time_ns: int) -> np.ndarray:
+        target = self.corrections(np.array([time_ns]))[0]
+        if self.pending:
+            self.blend, self.pending = (time_ns, self.last_live), False
+        live = target
+        if self.blend is not None:
+            fraction = (time_ns - self.blend[0]) / self.blend_ns
+            if fraction < 1.0:
+                live = geodesic(self.blend[1], target, max(fraction, 0.0))
+            else:
+                self.blend = None
+        self.last_live = live
+        return live
+
+
+def _small_corrections(rng: np.random.Generator, count: int) -> np.ndarray:
+    """Return ``count`` random small similarities (count, 4, 4)."""
+    return np.stack([_pose(float(rng.normal(0, 2)), rng.normal(0, 0.05, 3),
+                           float(np.exp(rng.normal(0, 0.02)))) for _ in range(count)])
+
+
+def _pool_like_updates(rng: np.random.Generator, count: int, frame_ns: int):
+    """Yield (stamps, corrections, oldest stamp still queried) of ``count`` BA results.
+
+    Each result refines 4 consecutive keyframes: the 3 newest refined before (again) and a new
+    one, like a pool that keeps its last selections; the oldest of them is the prune horizon.
+    Corrections are drawn from a bank of random small similarities.
+    """
+    bank = _small_corrections(rng, 64)
+    for call in range(count):
+        stamps = np.arange(call, call + 4) * frame_ns
+        yield stamps, bank[rng.integers(0, len(bank), 4)], int(stamps[0])
+
+
+def test_prune_keeps_every_result_from_the_horizon_on() -> None:
+    """Pruning drops what no later query uses; queries from the horizon on are unchanged."""
+    track = CorrectionTrack()
+    keys = np.arange(1, 7) * 100
+    track.update(keys, np.stack([_pose(float(k) / 20, [k / 1e3, 0, 0]) for k in keys]),
+                 np.tile(np.eye(4), (6, 1, 1)))
+    queries = np.arange(250, 900, 7)
+    before = track.corrections(queries)
+    assert track.prune(250) == 1 and len(track) == 5  # 200 stays: 250 lies between 200 and 300
+    assert track.oldest_ns == 200 and track.newest_ns == 600
+    np.testing.assert_array_equal(track.corrections(queries), before)
+    assert not track.is_refined(100) and track.is_refined(200)
+    assert track.prune(300) == 1 and track.prune(300) == 0  # a key at the horizon is kept
+    assert track.prune(10**18) == 3 and len(track) == 1  # the newest always stays
+    np.testing.assert_array_equal(track.corrections(np.array([10**17])), before[-1:])
+
+
+def test_max_entries_bounds_the_history_and_is_checked() -> None:
+    """The oldest corrections go first beyond max_entries; a limit below 2 names the value."""
+    track = CorrectionTrack(max_entries=3)
+    for time_ns in range(10):
+        track.update(np.array([time_ns]), _pose(float(time_ns), [0, 0, 0])[None],
+                     np.eye(4)[None])
+    assert len(track) == 3 and track.oldest_ns == 7
+    with pytest.raises(ValueError, match='got 1'):
+        CorrectionTrack(max_entries=1)
+
+
+def test_update_merges_out_of_order_and_repeated_stamps() -> None:
+    """Stamps in any order are kept sorted; a stamp repeated in one call keeps its last pose."""
+    track = CorrectionTrack()
+    eye = np.tile(np.eye(4), (3, 1, 1))
+    track.update(np.array([300, 100, 300]), np.stack([_pose(1, [0, 0, 0]), _pose(2, [0, 0, 0]),
+                                                      _pose(3, [0, 0, 0])]), eye)
+    track.update(np.array([200]), _pose(4, [0, 0, 0])[None], eye[:1])
+    np.testing.assert_allclose(track.corrections(np.array([100, 200, 300])),
+                               np.stack([_pose(a, [0, 0, 0]) for a in (2, 4, 3)]), atol=1e-12)
+    with pytest.raises(InputError, match='2 stamps for 3 poses'):
+        track.update(np.array([1, 2]), eye, eye)
+
+
+def test_pruned_track_matches_the_old_unbounded_history(rng) -> None:
+    """Live (blended) and best corrections equal the old dict-based history's, bit for bit."""
+    frame_ns = 100_000_000
+    track, old = CorrectionTrack(blend_s=0.3), _OldTrack(blend_s=0.3)
+    for stamps, corrections, horizon in _pool_like_updates(rng, 60, frame_ns):
+        for history in (track, old):
+            history.update(stamps, corrections, np.tile(np.eye(4), (4, 1, 1)))
+        track.prune(horizon)
+        for offset in (0.5, 1.5, 2.5):  # live frames after the newest keyframe, mid-blend
+            time_ns = int(stamps[-1] + offset * frame_ns)
+            np.testing.assert_array_equal(track.live_correction(time_ns),
+                                          old.live_correction(time_ns))
+        queries = np.linspace(horizon, stamps[-1] + frame_ns, 9).astype(np.int64)
+        np.testing.assert_array_equal(track.corrections(queries), old.corrections(queries))
+    assert len(track) == 4 and len(old.by_time) == 63
+
+
+def test_history_stays_bounded_over_a_long_run(rng) -> None:
+    """20,000 BA results, pruned to the pool: a few entries held, frames in range unchanged."""
+    frame_ns = 50_000_000
+    track, history = CorrectionTrack(), {}  # blends: see the test above
+    largest = 0
+    for call, (stamps, corrections, horizon) in enumerate(
+            _pool_like_updates(rng, 20_000, frame_ns)):
+        track.update(stamps, corrections, np.tile(np.eye(4), (4, 1, 1)))
+        track.prune(horizon)
+        history.update(zip(stamps.tolist(), corrections))
+        track.correct_live(int(stamps[-1]) + frame_ns, np.eye(4))
+        largest = max(largest, len(track))
+        if call % 4_000 == 3_999:  # the old behaviour: interpolate the whole history
+            keys = np.array(sorted(history))
+            queries = np.arange(horizon, stamps[-1] + 2 * frame_ns, frame_ns // 3)
+            np.testing.assert_array_equal(
+                track.corrections(queries),
+                interpolate_corrections(keys, np.stack([history[k] for k in keys]), queries))
+    assert largest == 4 and len(history) == 20_003

@@ -1,21 +1,29 @@
 """Background BA worker: submit() returns at once, results arrive by callback and poll."""
 
+import os
+from pathlib import Path
 import threading
+import time
 
 from ba_builders import synth_keyframe
+import cv2
 from infinihand_ros.ba.config import BAConfig
+from infinihand_ros.ba.config import WorkerConfig
 from infinihand_ros.ba.corrections import CorrectionTrack
 from infinihand_ros.ba.features import FeatureCache
 from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.ba.worker import BAWorkerError
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.ba.worker import plan_request
 from infinihand_ros.ba.worker import run_request
+from infinihand_ros.ba.worker import WorkerState
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
 import numpy as np
 import pytest
+import torch
 
 
 @pytest.fixture(scope='module')
@@ -110,12 +118,157 @@ def test_run_request_keeps_only_retained_features(keyframes: list) -> None:
 def test_failed_calls_are_counted_and_the_worker_lives_on(
         caplog: pytest.LogCaptureFixture) -> None:
     """A selection without any trackable pixel fails cleanly; the next call still runs."""
-    intrinsics = Intrinsics(50.0, 50.0, 32.0, 24.0, 64, 48)
-    blank = [KeyframeInput(i, i, np.zeros((48, 64, 3), np.uint8), np.ones((48, 64), np.float32),
-                           np.eye(4), intrinsics, np.zeros((48, 64), bool)) for i in range(3)]
     worker = BundleAdjustmentWorker(BAConfig())
-    worker.submit_selection(blank)
-    worker.submit_selection(blank)
+    worker.submit_selection(_blank_keyframes())
+    worker.submit_selection(_blank_keyframes())
     worker.close()
     assert worker.failures == 2 and worker.poll() == []
     assert 'no feature tracks between keyframes' in caplog.text
+
+
+def _blank_keyframes() -> list[KeyframeInput]:
+    """Return 3 black keyframes: no trackable pixel, so a BA call over them fails."""
+    intrinsics = Intrinsics(50.0, 50.0, 32.0, 24.0, 64, 48)
+    return [KeyframeInput(i, i, np.zeros((48, 64, 3), np.uint8), np.ones((48, 64), np.float32),
+                          np.eye(4), intrinsics, np.zeros((48, 64), bool)) for i in range(3)]
+
+
+def _crash(request: object, config: BAConfig, cache: FeatureCache) -> None:
+    """Kill the BA process it runs in (a stand-in for a crash in native code)."""
+    os._exit(5)
+
+
+def _sleep(request: object, config: BAConfig, cache: FeatureCache) -> None:
+    """Take far longer than any test waits."""
+    time.sleep(120.0)
+
+
+class _CrashingWorker(BundleAdjustmentWorker):
+    run_function = staticmethod(_crash)
+
+
+class _SlowWorker(BundleAdjustmentWorker):
+    run_function = staticmethod(_sleep)
+
+
+def _torch_threads_in_a_new_thread() -> int:
+    """Return torch's thread count as a thread started now sees it."""
+    seen = []
+    thread = threading.Thread(target=lambda: seen.append(torch.get_num_threads()))
+    thread.start()
+    thread.join()
+    return seen[0]
+
+
+def _nice_values(pid: int) -> set[int]:
+    """Return the niceness values of the threads of process ``pid`` (Linux /proc)."""
+    return {int((task / 'stat').read_text().rsplit(')', 1)[1].split()[16])
+            for task in Path(f'/proc/{pid}/task').iterdir()}
+
+
+@pytest.mark.skipif(not Path('/proc/self/task').exists(), reason='needs Linux /proc')
+def test_ba_leaves_the_callers_thread_settings_alone(keyframes: list) -> None:
+    """After a BA call, torch and OpenCV thread counts and niceness here are what they were.
+
+    Only the BA process runs niced (all its threads); the worker's own thread is not niced.
+    """
+    before = (torch.get_num_threads(), _torch_threads_in_a_new_thread(), cv2.getNumThreads(),
+              _nice_values(os.getpid()))
+    with BundleAdjustmentWorker(BAConfig(worker=WorkerConfig(niceness=11))) as worker:
+        worker.submit(plan_request(keyframes[:3], CorrectionTrack()))
+        while worker.pending():
+            time.sleep(0.01)
+        assert _nice_values(worker.process_id) == {11}
+    assert worker.poll() and worker.statistics.done == 1
+    after = (torch.get_num_threads(), _torch_threads_in_a_new_thread(), cv2.getNumThreads(),
+             _nice_values(os.getpid()))
+    assert after == before
+
+
+def test_state_and_statistics_follow_the_calls(keyframes: list) -> None:
+    """State goes idle, running (callback included), idle, stopped; counters add up."""
+    started, release = threading.Event(), threading.Event()
+
+    def callback(output) -> None:
+        started.set()
+        assert release.wait(timeout=60.0)
+
+    worker = BundleAdjustmentWorker(BAConfig(), callback)
+    assert worker.state == WorkerState.IDLE == 'idle'
+    worker.submit_selection(keyframes[:3])
+    assert started.wait(timeout=60.0)
+    assert worker.state == 'running' and worker.statistics.submitted == 1
+    release.set()
+    while worker.pending():
+        time.sleep(0.01)
+    assert worker.state == 'idle'
+    worker.close()
+    stats = worker.statistics
+    assert stats.state == 'stopped' and worker.state == WorkerState.STOPPED
+    assert (stats.submitted, stats.done, stats.dropped, stats.failed) == (1, 1, 0, 0)
+    assert stats.callback_errors == 0 and stats.process_starts == 1 and stats.last_error is None
+
+
+def test_callback_errors_are_counted_and_the_worker_lives_on(
+        keyframes: list, caplog: pytest.LogCaptureFixture) -> None:
+    """A callback that raises is logged and counted; results still arrive, later calls run."""
+    def callback(output) -> None:
+        raise KeyError('consumer bug')
+
+    request = plan_request(keyframes[:3], CorrectionTrack())
+    with BundleAdjustmentWorker(BAConfig(), callback) as worker:
+        worker.submit(request)
+        worker.submit(request)
+    stats = worker.statistics
+    assert stats.done == 2 and stats.callback_errors == 2 and stats.failed == 0
+    assert len(worker.poll()) == 2 and "KeyError: 'consumer bug'" in stats.last_error
+    assert 'BA result callback failed' in caplog.text
+
+
+def test_after_a_failed_call_the_next_submit_works(keyframes: list) -> None:
+    """A failing selection is counted with its error; the next selection is accepted and runs."""
+    with BundleAdjustmentWorker(BAConfig()) as worker:
+        worker.submit_selection(_blank_keyframes())
+        while worker.pending():
+            time.sleep(0.01)
+        assert worker.statistics.failed == 1 and worker.state == 'idle'
+        assert 'no feature tracks between keyframes' in worker.statistics.last_error
+        worker.submit_selection(keyframes[:3])  # no 'submit after close()' here
+    stats = worker.statistics
+    assert (stats.submitted, stats.done, stats.failed) == (2, 1, 1)
+    assert [output.frame_ids.tolist() for output in worker.poll()] == [[0, 2, 4]]
+
+
+def test_a_ba_process_that_keeps_dying_fails_the_worker_clearly(keyframes: list) -> None:
+    """Each death fails one call and starts a new process; after 3 in a row the worker fails."""
+    worker = _CrashingWorker(BAConfig())
+    request = plan_request(keyframes[:3], CorrectionTrack())
+    for _ in range(3):
+        worker.submit(request)
+    deadline = time.monotonic() + 120.0
+    while worker.state != 'failed' and time.monotonic() < deadline:
+        time.sleep(0.05)
+    stats = worker.statistics
+    assert stats.state == 'failed' and stats.failed == 3 and stats.process_starts == 3
+    assert 'died in 3 calls in a row' in stats.last_error and 'exit code 5' in stats.last_error
+    with pytest.raises(BAWorkerError, match='create a new worker'):
+        worker.submit(request)
+    worker.close()
+    assert worker.state == 'failed'
+
+
+def test_close_with_a_timeout_abandons_a_stuck_call(keyframes: list) -> None:
+    """close(timeout_s) returns soon: the running call fails, the queued one is dropped."""
+    worker = _SlowWorker(BAConfig())
+    request = plan_request(keyframes[:3], CorrectionTrack())
+    worker.submit(request)
+    worker.submit(request)
+    while worker.process_id is None:
+        time.sleep(0.01)
+    time.sleep(0.2)  # the first call is on its way to the (sleeping) BA process
+    start = time.monotonic()
+    worker.close(timeout_s=0.5)
+    assert time.monotonic() - start < 30.0
+    stats = worker.statistics
+    assert (stats.state, stats.submitted, stats.done, stats.failed, stats.dropped) == \
+        ('stopped', 2, 0, 1, 1)
