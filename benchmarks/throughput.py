@@ -22,6 +22,7 @@ import os
 from pathlib import Path
 import time
 
+from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.streaming_engine import StreamingEngine
@@ -105,21 +106,23 @@ def main() -> None:
             figures.update(_run(engine, frames, args.frames, mode))
     if args.ba:
         for name, enabled in (('ba_off', False), ('ba_on', True)):
-            ba_config = replace(config, mode='per_frame', bundle_adjustment=enabled,
-                                presence_threshold=BA_PRESENCE_THRESHOLD)
+            ba_config = replace(
+                config, mode='per_frame',
+                bundle_adjustment=load_ba_config() if enabled else None,
+                detection=replace(config.detection, presence_threshold=BA_PRESENCE_THRESHOLD))
             with StreamingEngine(ba_config, model) as engine:
                 run = _run(engine, frames, args.frames, name)
                 if enabled:
                     figures.update({f'ba_{key}': value
-                                    for key, value in engine.ba_statistics.items()})
+                                    for key, value in engine.statistics['ba'].items()})
             figures.update({key: value for key, value in run.items() if 'latency' in key})
     rounded = {key: (round(value, 1) if isinstance(value, float) else value)
                for key, value in figures.items()}
     if args.json:
         print(json.dumps(rounded))
         return
-    print(f'engine {config.geometry}/{config.hand_branch} on {config.device}, {args.frames} '
-          'frames of 518x378:')
+    print(f'engine {config.model.geometry}/{config.model.hand_branch} on {config.device}, '
+          f'{args.frames} frames of 518x378:')
     for key, value in rounded.items():
         print(f'  {key:28s} {value}')
 

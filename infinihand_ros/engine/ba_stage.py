@@ -2,7 +2,8 @@
 
 Each keyframe (image, metric depth, its metrically scaled pose, hand boxes) enters the binary
 keyframe pool; when the pool triggers, its selection goes to a ``BundleAdjustmentWorker``
-thread and the stream goes on at once. Finished BA calls are handed to the pose track
+(BA runs in its own process, so its thread settings, CPU priority and crashes stay there) and
+the stream goes on at once. Finished BA calls are handed to the pose track
 (``engine/pose_track.py``), which applies them as corrections; nothing here places hands or
 changes results. The track's correction history is pruned to what the pool and the track can
 still query, so memory and time stay bounded on an unbounded stream.
@@ -66,10 +67,17 @@ class BundleAdjustmentStage:
                                          self.pool.frame_ids())
             self.calls_submitted += 1
 
-    def statistics(self) -> dict[str, int]:
-        """Return BA selections submitted, calls done, selections dropped and calls failed."""
-        return {'submitted': self.calls_submitted, 'done': self.calls_done,
-                'dropped': self.worker.dropped, 'failed': self.worker.failures}
+    def statistics(self) -> dict[str, object]:
+        """Return the BA worker's state, its counters and last error, and the results folded in.
+
+        ``state`` is 'idle', 'running', 'stopped' or 'failed' (the BA process kept dying;
+        the stream goes on with unrefined poses).
+        """
+        worker = self.worker.statistics
+        return {'state': str(worker.state), 'submitted': worker.submitted, 'done': worker.done,
+                'dropped': worker.dropped, 'failed': worker.failed,
+                'callback_errors': worker.callback_errors, 'last_error': worker.last_error,
+                'folded_in': self.calls_done}
 
     def close(self) -> None:
         """Finish queued BA calls and stop the worker."""
