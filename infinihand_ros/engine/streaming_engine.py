@@ -80,7 +80,7 @@ class StreamingEngine:
         self._frames_pushed = 0
         self._last_stamp: int | None = None
         self._accepted_stamp: int | None = None  # last stamp of a block the model accepted
-        self._model_size: tuple[int, int] | None = None
+        self._source_size: tuple[int, int] | None = None  # (width, height) of the stream
         ba = self.config.bundle_adjustment
         self.pose_track = PoseTrack(self.config.pose_track, self.config.metric_scale,
                                     0.0 if ba is None else ba.corrections.blend_s)
@@ -189,14 +189,14 @@ class StreamingEngine:
         stamp = check_timestamp(timestamp_ns, self._last_stamp)
         image = check_image(image)
         intrinsics = check_intrinsics(intrinsics, image)
+        size = (image.shape[1], image.shape[0])
+        if self._source_size not in (None, size):
+            raise InputError(f"image: {size[0]}x{size[1]} px, but this stream's frames are "
+                             f'{self._source_size[0]}x{self._source_size[1]} px; keep one image '
+                             'size per stream (resize the frames) or reset() between streams')
         geometry = self.model.geometry.config
         fitted, mapping = fit_image(image, geometry.preprocessing, geometry.aggregator)
-        if self._model_size not in (None, mapping.model_size):
-            raise InputError(f'image: a {image.shape[1]}x{image.shape[0]} frame fits the model '
-                             f'at {mapping.model_size[0]}x{mapping.model_size[1]}, but this '
-                             f'stream runs at {self._model_size[0]}x{self._model_size[1]}; keep '
-                             'one image size per stream or reset() between streams')
-        self._model_size = mapping.model_size
+        self._source_size = size
         pixels = torch.from_numpy(fitted).to(self._device).permute(2, 0, 1).float() / 255.0
         index = self._frames_pushed
         after_anchors = index - self._anchor_frames

@@ -268,3 +268,12 @@ def test_flush_during_the_anchors_returns_every_frame(model, frames: list) -> No
     results += engine.flush()
     engine.close()
     assert [r.frame_index for r in results] == [0, 1, 2, 3]
+
+
+def test_a_size_change_mid_stream_is_refused(model, frames: list) -> None:
+    """Letterboxing would hide it: the engine refuses frames of another size, stream intact."""
+    engine = StreamingEngine(CONFIG, model)
+    engine.push(frames[0].rgb, frames[0].timestamp_ns)
+    with pytest.raises(InputError, match='320x240 px'):
+        engine.push(frames[1].rgb[:200, :300], frames[1].timestamp_ns)
+    assert engine.statistics['frames_pushed'] == 1
