@@ -145,8 +145,9 @@ class InfiniHandModel(nn.Module):
         detection = detection or HandDetection()
         geometry = stream.step(images, keyframe)
         height, width = images.shape[-2:]
-        encoding = geometry.pose_encoding.double().clone()
-        encoding[..., FOV_H:] = encoding[..., FOV_H:].clamp(*detection.fov_range_rad)
+        encoding = geometry.pose_encoding.double()
+        encoding = torch.cat((encoding[..., :FOV_H],  # out of place: training backprops here
+                              encoding[..., FOV_H:].clamp(*detection.fov_range_rad)), dim=-1)
         T_world_cam, predicted = encoding_to_cam_to_world(encoding, height, width,
                                                           self.geometry.config.pose_direction)
         if intrinsics is not None:
