@@ -29,6 +29,7 @@ setup(
     entry_points={
         'console_scripts': [
             f'synth = {PACKAGE_NAME}.synth.cli:main',
+            f'train = {PACKAGE_NAME}.train.cli:main',
         ],
     },
 )

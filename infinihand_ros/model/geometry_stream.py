@@ -1,7 +1,8 @@
 """Streaming interface of the geometry branch: frames in, per-frame geometry out.
 
-``GeometryStream.step(images, keyframe)`` takes one frame or a window of frames (B=1, S, 3, H, W)
-RGB in [0, 1] and returns a ``GeometryOutput`` for every frame of the call. The first
+``GeometryStream.step(images, keyframe)`` takes one frame or a window of frames (B, S, 3, H, W)
+RGB in [0, 1] and returns a ``GeometryOutput`` for every frame of the call; B >= 1 sequences
+advance in lockstep (a training batch of clips; keep B until ``reset()``). The first
 ``memory.anchor_frames`` frames of a sequence are anchors (stored whatever their flag; pass them
 in one call to match the paper, which processes them together). Later frames are stored when
 their keyframe flag is set. A window of frames in one call gives the same outputs as its frames
@@ -69,8 +70,8 @@ class GeometryStream:
         """Process one or more frames and return their outputs.
 
         Args:
-            images: (1, S, 3, H, W) float RGB in [0, 1] on the model's device; H and W multiples
-                of the patch size (the configured size is the one the weights expect).
+            images: (B, S, 3, H, W) float RGB in [0, 1] on the model's device, B >= 1; H and W
+                multiples of the patch size (the configured size is the one the weights expect).
             keyframe: one flag for all S frames, or one per frame.
 
         Raises:
@@ -98,11 +99,11 @@ class GeometryStream:
     def _check(self, images: torch.Tensor, keyframe: bool | Sequence[bool]) -> list[bool]:
         """Validate the input and return one keyframe flag per frame."""
         patch = self.model.config.aggregator.patch_size
-        if (not isinstance(images, torch.Tensor) or images.dim() != 5 or images.shape[0] != 1
+        if (not isinstance(images, torch.Tensor) or images.dim() != 5 or images.shape[0] < 1
                 or images.shape[2] != 3 or not images.is_floating_point()):
             got = tuple(images.shape) if isinstance(images, torch.Tensor) else type(images)
-            raise InputError(f'geometry stream: expected a float tensor (1, S, 3, H, W) in '
-                             f'[0, 1], got {got}')
+            raise InputError(f'geometry stream: expected a float tensor (B, S, 3, H, W), B >= 1 '
+                             f'(one sequence: (1, S, 3, H, W)), in [0, 1], got {got}')
         height, width = images.shape[-2:]
         if height % patch or width % patch:
             raise InputError(f'geometry stream: image size {height}x{width} is not a multiple '

@@ -1,6 +1,11 @@
 """Training of InfiniHand (paper Sec. 3.2-3.3, Sec. 4.1 and appendix B).
 
-Subpackages: ``losses`` (every loss term of appendix B as a pure function of plain tensors,
-with its weights in ``config/train_losses.yaml``). The Stage I / Stage II loops come later and
-adapt the model's outputs to those functions' arguments.
+Subpackage ``losses``: every loss term of appendix B as a pure function of plain tensors, with
+its weights in ``config/train_losses.yaml``. Modules: ``train_config`` (``TrainConfig``,
+``config/train_*.yaml``), ``sequence_reader`` (format-driven sequence readers, per-sequence
+targets), ``clip_data`` (clips, resumable sampler, loader), ``clip_runner`` (the model over a
+clip's windows, box sampling), ``loss_adapter`` (model outputs to loss arguments), ``optim``
+(parameter groups, AdamW, warm-up + cosine), ``train_state`` (checkpoints, resume),
+``loss_log`` (JSON lines / CSV log, PNG curves), ``distributed`` (torchrun + DDP),
+``trainer`` (the loop shared by both stages) and ``cli`` (the ``train`` console script).
 """

@@ -310,3 +310,22 @@ def test_a_non_finite_block_leaves_the_stream_as_it_was(micro_model: GeometryMod
         assert broken.schedule.frames_seen == 3
         torch.testing.assert_close(broken.step(frames[:, 3:4]).pose_encoding,
                                    clean.step(frames[:, 3:4]).pose_encoding)
+
+
+def test_a_batch_of_sequences_matches_each_sequence_alone(micro_model: GeometryModel,
+                                                          rng) -> None:
+    """B > 1 sequences in one stream give each sequence's own outputs, windows and all."""
+    first, second = _frames(rng, 5), _frames(rng, 5)
+    batched = GeometryStream(micro_model)
+    alone = [GeometryStream(micro_model), GeometryStream(micro_model)]
+    with torch.no_grad():
+        blocks = [batched.step(torch.cat((first[:, :2], second[:, :2]))),
+                  batched.step(torch.cat((first[:, 2:], second[:, 2:])))]
+        singles = [[stream.step(frames[:, :2]), stream.step(frames[:, 2:])]
+                   for stream, frames in zip(alone, (first, second))]
+    for block_index, block in enumerate(blocks):
+        for sample, single in enumerate(singles):
+            for name in ('pose_encoding', 'depth', 'hand_masks', 'patch_features'):
+                torch.testing.assert_close(getattr(block, name)[sample:sample + 1],
+                                           getattr(single[block_index], name),
+                                           rtol=1e-4, atol=1e-4, msg=name)
