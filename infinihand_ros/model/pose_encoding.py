@@ -111,7 +111,7 @@ def encoding_to_matrices(encoding: torch.Tensor, height: int, width: int
     return transform, intrinsics
 
 
-def _invert_rigid(transform: torch.Tensor) -> torch.Tensor:
+def invert_rigid(transform: torch.Tensor) -> torch.Tensor:
     """Return the inverse of rigid transforms (..., 4, 4): ``[R^T | -R^T t]``."""
     rotation_t = transform[..., :3, :3].transpose(-1, -2)
     inverse = torch.zeros_like(transform)
@@ -141,7 +141,7 @@ def encoding_to_cam_to_world(encoding: torch.Tensor, height: int, width: int, di
     """
     transform, intrinsics = encoding_to_matrices(encoding, height, width)
     if check_pose_direction(direction) == WORLD_TO_CAM:
-        transform = _invert_rigid(transform)
+        transform = invert_rigid(transform)
     return transform, intrinsics
 
 
@@ -164,7 +164,7 @@ def cam_to_world_to_encoding(cam_to_world: torch.Tensor, intrinsics: torch.Tenso
     """
     transform = cam_to_world
     if check_pose_direction(direction) == WORLD_TO_CAM:
-        transform = _invert_rigid(cam_to_world)
+        transform = invert_rigid(cam_to_world)
     quaternion = roma.rotmat_to_unitquat(transform[..., :3, :3])
     quaternion = torch.where(quaternion[..., 3:] < 0, -quaternion, quaternion)
     fov_h = 2.0 * torch.atan((height / 2.0) / intrinsics[..., 1, 1])

@@ -15,19 +15,10 @@ floored at ``min_scale_m`` (so a static camera or an empty sample gives the floo
 kappa comes from targets only and carries no gradient.
 """
 
+from infinihand_ros.model.pose_encoding import invert_rigid
 from infinihand_ros.train.losses.primitives import finite_or_zero
 from infinihand_ros.train.losses.primitives import finite_rows
 import torch
-
-
-def invert_rigid(transform: torch.Tensor) -> torch.Tensor:
-    """Return the inverse ``[R^T | -R^T t]`` of rigid transforms (..., 4, 4)."""
-    rotation_t = transform[..., :3, :3].transpose(-1, -2)
-    inverse = torch.zeros_like(transform)
-    inverse[..., :3, :3] = rotation_t
-    inverse[..., :3, 3] = -(rotation_t @ transform[..., :3, 3:4])[..., 0]
-    inverse[..., 3, 3] = 1.0
-    return inverse
 
 
 def anchor_poses(T_world_cam: torch.Tensor) -> torch.Tensor:

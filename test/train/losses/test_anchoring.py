@@ -2,11 +2,11 @@
 
 import math
 
+from infinihand_ros.model.pose_encoding import invert_rigid
 from infinihand_ros.train.losses import anchor_points
 from infinihand_ros.train.losses import anchor_poses
 from infinihand_ros.train.losses import sample_scale
 from infinihand_ros.train.losses.anchoring import camera_to_world
-from infinihand_ros.train.losses.anchoring import invert_rigid
 from loss_builders import rigid
 from loss_builders import rotation_x
 from loss_builders import rotation_z
