@@ -1,6 +1,5 @@
 """PyTorch dataset over sample directories (``data/sample_format.py``)."""
 
-import json
 from pathlib import Path
 
 import cv2
@@ -13,15 +12,10 @@ from torch.utils.data import Dataset
 
 
 def _read_meta(root: Path) -> dict:
-    """Read and check ``meta.json`` of a sample directory."""
-    meta_path = root / fmt.META_FILE
-    try:
-        meta = json.loads(meta_path.read_text(encoding='utf-8'))
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f'{meta_path}: not a readable sample directory ({exc}); generate one '
-                         'with python -m infinihand_ros.synth') from exc
+    """Read ``meta.json`` of a sample directory and check its format and version."""
+    meta = fmt.read_meta(root)
     if meta.get('format') != fmt.FORMAT_NAME or meta.get('version') != fmt.FORMAT_VERSION:
-        raise InputError(f'{meta_path}: format {meta.get("format")!r} version '
+        raise InputError(f'{root / fmt.META_FILE}: format {meta.get("format")!r} version '
                          f'{meta.get("version")!r}; expected {fmt.FORMAT_NAME!r} version '
                          f'{fmt.FORMAT_VERSION}')
     return meta

@@ -17,7 +17,11 @@ Images load with one OpenCV call each and annotations are memory-mapped, so a Py
 (``data/synth_dataset.py``) reads a sample in about a millisecond.
 """
 
+import json
+from pathlib import Path
 from typing import Final
+
+from infinihand_ros.core.errors import InputError
 
 FORMAT_NAME: Final = 'infinihand-samples'
 FORMAT_VERSION: Final = 1
@@ -41,3 +45,21 @@ MANO_FIELDS: Final = ('global_orient', 'hand_pose', 'betas', 'transl')
 def frame_file(index: int, suffix: str) -> str:
     """File name of frame ``index`` (zero-padded to six digits)."""
     return f'{index:06d}{suffix}'
+
+
+def read_meta(root: Path) -> dict:
+    """Return the ``meta.json`` object of a sample directory ``root``.
+
+    Raises:
+        InputError: naming the file when it is missing, not JSON or not a JSON object.
+
+    """
+    meta_path = Path(root) / META_FILE
+    try:
+        meta = json.loads(meta_path.read_text(encoding='utf-8'))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise InputError(f'{meta_path}: not a readable sample directory ({exc}); generate one '
+                         'with python -m infinihand_ros.synth') from exc
+    if not isinstance(meta, dict):
+        raise InputError(f'{meta_path}: expected a JSON object, got {type(meta).__name__}')
+    return meta

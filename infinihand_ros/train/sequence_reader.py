@@ -16,7 +16,6 @@ only the images are decoded and fitted.
 from collections.abc import Callable
 from collections.abc import Mapping
 from dataclasses import dataclass
-import json
 from pathlib import Path
 import types
 from typing import Final, Protocol
@@ -72,19 +71,6 @@ class SequenceReader(Protocol):
 
 
 ReaderFactory = Callable[[Path, dict], SequenceReader]
-
-
-def _read_meta(root: Path) -> dict:
-    """Read ``meta.json`` of a sequence directory (InputError when absent or broken)."""
-    meta_path = root / fmt.META_FILE
-    try:
-        meta = json.loads(meta_path.read_text(encoding='utf-8'))
-    except (OSError, json.JSONDecodeError) as exc:
-        raise InputError(f'{meta_path}: not a readable sequence directory ({exc}); generate '
-                         'one with python -m infinihand_ros.synth') from exc
-    if not isinstance(meta, dict):
-        raise InputError(f'{meta_path}: expected a JSON object, got {type(meta).__name__}')
-    return meta
 
 
 class SampleDirectoryReader:
@@ -151,7 +137,7 @@ def open_sequence(root: str | Path,
 
     """
     root = Path(root)
-    meta = _read_meta(root)
+    meta = fmt.read_meta(root)
     name = meta.get('format')
     if name not in readers:
         raise InputError(f'{root / fmt.META_FILE}: format {name!r} has no reader; known '
