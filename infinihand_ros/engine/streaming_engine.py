@@ -46,7 +46,6 @@ from infinihand_ros.engine.timestamps import check_timestamp
 from infinihand_ros.engine.world_placement import place_in_world
 from infinihand_ros.model.geometry_model import GeometryOutput
 from infinihand_ros.model.infinihand_model import CameraSpaceOutput
-from infinihand_ros.model.infinihand_model import HandDetection
 import numpy as np
 import torch
 
@@ -59,12 +58,9 @@ class StreamingEngine:
         """Build the engine (and its model, unless one is given) from ``config``."""
         self.config = config or load_engine_config()
         self.model = model or build_model(self.config)
-        geometry = self.model.geometry.config
-        self._anchor_frames = geometry.memory.anchor_frames
-        self._detection = HandDetection(
-            geometry.masks.threshold, geometry.masks.min_pixels,
-            self.config.detection.presence_threshold,
-            tuple(float(np.radians(value)) for value in self.config.detection.fov_range_deg))
+        self._anchor_frames = self.model.geometry.config.memory.anchor_frames
+        self._detection = self.model.hand_detection(self.config.detection.presence_threshold,
+                                                    self.config.detection.fov_range_deg)
         self._device = next(self.model.parameters()).device
         self._decoder = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_decode')
                          if self.config.mode == 'windowed' else None)

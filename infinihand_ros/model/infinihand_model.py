@@ -106,6 +106,13 @@ class InfiniHandModel(nn.Module):
         self.geometry = geometry
         self.hand_branch = hand_branch
 
+    def hand_detection(self, presence_threshold: float = 0.5,
+                       fov_range_deg: tuple[float, float] = (5.0, 170.0)) -> HandDetection:
+        """Return detection settings: the geometry config's mask thresholds plus these."""
+        masks = self.geometry.config.masks
+        return HandDetection(masks.threshold, masks.min_pixels, presence_threshold,
+                             (math.radians(fov_range_deg[0]), math.radians(fov_range_deg[1])))
+
     def new_stream(self) -> GeometryStream:
         """Return an empty stream (memories and frame counters) for one sequence."""
         return GeometryStream(self.geometry)
@@ -124,8 +131,8 @@ class InfiniHandModel(nn.Module):
             intrinsics_known: (B, S) bool, which of ``intrinsics`` to use (all if None).
             boxes: hand boxes to use instead of the mask head's (training), tight, model
                 pixels, ``batch_index`` over the B*S frames.
-            detection: thresholds of mask-based detection and the FoV clamp (defaults if
-                None).
+            detection: thresholds of mask-based detection and the FoV clamp
+                (``hand_detection()`` if None).
 
         Raises:
             InputError: for inputs of the wrong shape.
@@ -142,7 +149,7 @@ class InfiniHandModel(nn.Module):
                      detection: HandDetection | None = None
                      ) -> tuple[GeometryOutput, torch.Tensor, torch.Tensor]:
         """Return the geometry outputs, camera-to-world poses and the intrinsics for the hands."""
-        detection = detection or HandDetection()
+        detection = detection or self.hand_detection()
         geometry = stream.step(images, keyframe)
         height, width = images.shape[-2:]
         encoding = geometry.pose_encoding.double()
@@ -161,7 +168,7 @@ class InfiniHandModel(nn.Module):
                   intrinsics: torch.Tensor, boxes: HandBoxes | None = None,
                   detection: HandDetection | None = None) -> CameraSpaceOutput:
         """Find the hands (unless ``boxes`` are given) and run the hand branch on them."""
-        detection = detection or HandDetection()
+        detection = detection or self.hand_detection()
         masks = geometry.hand_masks.flatten(0, 1)  # (B*S, 2, H, W)
         if boxes is None:
             boxes, presence = _detect_hands(masks, detection)

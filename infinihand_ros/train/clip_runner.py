@@ -73,9 +73,7 @@ class ClipRunner(nn.Module):
         super().__init__()
         self.model = model
         self.config = config
-        masks = model.geometry.config.masks
-        self.detection = detection or HandDetection(mask_threshold=masks.threshold,
-                                                    min_pixels=masks.min_pixels)
+        self.detection = detection or model.hand_detection()
 
     def forward(self, batch: dict[str, torch.Tensor], use_gt: torch.Tensor
                 ) -> dict[str, torch.Tensor]:
