@@ -1,10 +1,13 @@
 """Smooth reach/grasp motions of two hands in the scene's world frame (z up, table top known).
 
 Each hand moves between keyframes a second or two apart. A keyframe is a reach to a point on the
-table (grasp: fingers close on arrival), a hover in front of the head (fingers relaxed) or a rest
-low by the body (often out of view). Positions and orientations are world-anchored, so hand motion
-and head motion are independent; between keyframes positions follow minimum-jerk profiles and
-orientations are slerped with the same profile. Poses are MANO parameters of the built-in hand.
+table (grasp: fingers close on arrival), a hover in front of the head or a rest
+low by the body (often out of view). Each keyframe also draws a finger gesture (``gestures``:
+grasps of different sizes, pinches, pointing, open, fist, random fingers). A hover sometimes
+crosses the body's midline, so the hands can occlude each other. Positions and orientations are
+world-anchored, so hand motion and head motion are independent; between keyframes positions and
+finger angles follow minimum-jerk profiles and orientations are slerped with the same profile.
+Poses are MANO parameters of the built-in hand.
 """
 
 from dataclasses import dataclass
@@ -12,8 +15,7 @@ from typing import Final
 
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_BETAS
-from infinihand_ros.core.hand_conventions import NUM_HAND_POSE_JOINTS
-from infinihand_ros.mano.mirror import mirror_axis_angle
+from infinihand_ros.synth import gestures
 from infinihand_ros.synth.scene import Scene
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -22,7 +24,7 @@ from scipy.spatial.transform import Slerp
 #: Seconds between hand keyframes.
 KEYFRAME_GAP_S: Final = (1.0, 2.2)
 #: Probabilities of the keyframe kinds (reach to the table, hover in view, rest by the body).
-KIND_PROBABILITIES: Final = {'grasp': 0.55, 'hover': 0.33, 'rest': 0.12}
+KIND_PROBABILITIES: Final = {'grasp': 0.5, 'hover': 0.4, 'rest': 0.1}
 #: Horizontal distance from the head to a reach target on the table (m).
 REACH_M: Final = (0.15, 0.5)
 #: Wrist height above the table top when grasping (m).
@@ -30,20 +32,13 @@ GRASP_HEIGHT_M: Final = (0.08, 0.14)
 #: Hover point relative to the head: forward, sideways (per side), downwards (m).
 HOVER_FORWARD_M: Final = (0.22, 0.40)
 HOVER_SIDE_M: Final = (0.05, 0.22)
+#: Probability that a hover crosses the midline (towards the other hand), and how far (m).
+CROSS_PROBABILITY: Final = 0.15
+CROSS_SIDE_M: Final = (0.0, 0.12)
 HOVER_DOWN_M: Final = (0.15, 0.35)
 #: Rest point relative to the head: sideways and downwards (m).
 REST_SIDE_M: Final = 0.25
 REST_DOWN_M: Final = 0.75
-#: Finger flexion (degrees) per joint level (proximal, middle, distal) when open and when closed.
-OPEN_FLEX_DEG: Final = (8.0, 10.0, 6.0)
-GRASP_FLEX_DEG: Final = (55.0, 70.0, 40.0)
-#: Thumb flexion (degrees) per joint when open and when closed.
-THUMB_OPEN_DEG: Final = (5.0, 5.0, 5.0)
-THUMB_GRASP_DEG: Final = (25.0, 35.0, 35.0)
-#: Flexion axis of the long fingers and of the thumb in the right hand's canonical frame
-#: (fingers along -x, palm facing -y, thumb towards +z: flexion turns -x towards -y).
-FINGER_FLEX_AXIS: Final = np.array([0.0, 0.0, 1.0])
-THUMB_FLEX_AXIS: Final = np.array([0.64, 0.0, 0.77]) / np.linalg.norm([0.64, 0.0, 0.77])
 #: Random roll and pitch of the palm around its nominal orientation (degrees, 1 sigma).
 ORIENTATION_JITTER_DEG: Final = 18.0
 #: Capsule radius (m) at the wrist, MCP, PIP, DIP and tip joints of the mean hand.
@@ -97,8 +92,8 @@ def _hand_rotation(side: int, fingers: np.ndarray, palm_normal: np.ndarray) -> n
 
 
 def _keyframe_target(rng: np.random.Generator, scene: Scene, side: int,
-                     T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
-    """Draw one keyframe: wrist position, hand rotation and grasp amount in [0, 1]."""
+                     T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Draw one keyframe: wrist position, hand rotation and gesture vector (21,)."""
     head = T_world_cam[:3, 3]
     forward = T_world_cam[:3, 2].copy()
     forward[2] = 0.0
@@ -114,16 +109,18 @@ def _keyframe_target(rng: np.random.Generator, scene: Scene, side: int,
         wrist[:2] = np.clip(wrist[:2], scene.table.center[:2] - scene.table.half_extents[:2],
                             scene.table.center[:2] + scene.table.half_extents[:2])
         pitch = np.radians(rng.uniform(10.0, 30.0))
-        grasp = 1.0
+        gesture = gestures.draw_gesture(rng, gestures.draw_kind(rng, gestures.GRASP_KINDS))
     elif kind == 'hover':
+        lateral = (-rng.uniform(*CROSS_SIDE_M) if rng.uniform() < CROSS_PROBABILITY
+                   else rng.uniform(*HOVER_SIDE_M))
         wrist = (head + forward * rng.uniform(*HOVER_FORWARD_M)
-                 + side_dir * rng.uniform(*HOVER_SIDE_M) + down * rng.uniform(*HOVER_DOWN_M))
+                 + side_dir * lateral + down * rng.uniform(*HOVER_DOWN_M))
         pitch = np.radians(rng.uniform(-10.0, 25.0))
-        grasp = rng.uniform(0.0, 0.4)
+        gesture = gestures.draw_gesture(rng, gestures.draw_kind(rng, gestures.HOVER_KINDS))
     else:
         wrist = head + side_dir * REST_SIDE_M + down * REST_DOWN_M
         pitch = np.radians(70.0)
-        grasp = 0.3
+        gesture = gestures.draw_gesture(rng, 'rest')
     wrist[2] = max(wrist[2], scene.table_top_z + GRASP_HEIGHT_M[0])
     reach = wrist - head
     reach[2] = 0.0
@@ -131,36 +128,23 @@ def _keyframe_target(rng: np.random.Generator, scene: Scene, side: int,
     fingers = np.cos(pitch) * heading + np.sin(pitch) * down
     rotation = _hand_rotation(side, fingers, down)
     jitter = Rotation.from_rotvec(rng.normal(scale=np.radians(ORIENTATION_JITTER_DEG), size=3))
-    return wrist, jitter.as_matrix() @ rotation, grasp
+    return wrist, jitter.as_matrix() @ rotation, gesture.as_vector()
 
 
 def _interpolate(times: np.ndarray, key_times: np.ndarray, key_positions: np.ndarray,
-                 key_rotations: Rotation, key_grasp: np.ndarray
+                 key_rotations: Rotation, key_gestures: np.ndarray
                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Minimum-jerk interpolation of keyframes at ``times`` (positions, axis-angles, grasp)."""
+    """Minimum-jerk interpolation of keyframes at ``times`` (positions, axis-angles, gestures)."""
     segment = np.clip(np.searchsorted(key_times, times, side='right') - 1, 0, len(key_times) - 2)
     tau = (times - key_times[segment]) / (key_times[segment + 1] - key_times[segment])
     weight = minimum_jerk(tau)
     positions = ((1.0 - weight)[:, None] * key_positions[segment]
                  + weight[:, None] * key_positions[segment + 1])
-    grasp = (1.0 - weight) * key_grasp[segment] + weight * key_grasp[segment + 1]
+    gesture = ((1.0 - weight)[:, None] * key_gestures[segment]
+               + weight[:, None] * key_gestures[segment + 1])
     slerp = Slerp(key_times, key_rotations)
     eased_times = key_times[segment] + weight * (key_times[segment + 1] - key_times[segment])
-    return positions, slerp(eased_times).as_rotvec(), grasp
-
-
-def _finger_pose(grasp: np.ndarray, side: int, rng: np.random.Generator) -> np.ndarray:
-    """Hand pose (T, 15, 3) curling every finger by ``grasp`` in [0, 1] (MANO joint order)."""
-    levels = np.array(OPEN_FLEX_DEG)[None] + grasp[:, None] * (
-        np.array(GRASP_FLEX_DEG) - np.array(OPEN_FLEX_DEG))[None]
-    thumb = np.array(THUMB_OPEN_DEG)[None] + grasp[:, None] * (
-        np.array(THUMB_GRASP_DEG) - np.array(THUMB_OPEN_DEG))[None]
-    # Long fingers in MANO order: index, middle, pinky, ring (three joints each), then the thumb.
-    finger_scale = rng.uniform(0.85, 1.15, size=4)
-    angles = np.concatenate([levels * s for s in finger_scale] + [thumb], axis=1)
-    axes = np.stack([FINGER_FLEX_AXIS] * 12 + [THUMB_FLEX_AXIS] * 3)
-    pose = np.radians(angles)[:, :, None] * axes[None]
-    return mirror_axis_angle(pose) if side == LEFT else pose
+    return positions, slerp(eased_times).as_rotvec(), gesture
 
 
 def make_hand_track(rng: np.random.Generator, scene: Scene, side: int,
@@ -185,14 +169,13 @@ def make_hand_track(rng: np.random.Generator, scene: Scene, side: int,
     key_frames = np.clip(np.round(key_times * fps).astype(int), 0, num_frames - 1)
     targets = [_keyframe_target(rng, scene, side, T_world_cams[k]) for k in key_frames]
     times = np.arange(num_frames) / fps
-    positions, orient, grasp = _interpolate(
+    positions, orient, gesture = _interpolate(
         times, key_times, np.stack([t[0] for t in targets]),
-        Rotation.from_matrix(np.stack([t[1] for t in targets])), np.array([t[2] for t in targets]))
+        Rotation.from_matrix(np.stack([t[1] for t in targets])), np.stack([t[2] for t in targets]))
     size = float(np.exp(0.05 * betas[0]))
     radii = np.array([JOINT_RADII_M[0]] + list(JOINT_RADII_M[1:]) * 5) * size
     return HandTrack(side=side, global_orient=orient,
-                     hand_pose=_finger_pose(grasp, side, rng).reshape(
-                         num_frames, NUM_HAND_POSE_JOINTS, 3),
+                     hand_pose=gestures.gesture_hand_pose(gesture, side),
                      betas=betas, transl=positions, radii=radii, skin_rgb=skin_rgb)
 
 
