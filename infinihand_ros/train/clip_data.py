@@ -77,7 +77,7 @@ class ClipDataset(Dataset):
             raise InputError(f'training data: no sequence holds a clip of {span} frames '
                              f'(layout {layout.total_frames} frames, stride '
                              f'{layout.frame_stride}); sequence lengths are {lengths}')
-        self._cache: dict[tuple[int, int], tuple[np.ndarray, np.ndarray | None]] | None = (
+        self._cache: dict[tuple[int, int], tuple[np.ndarray | None, ...]] | None = (
             {} if cache_images else None)
 
     def __len__(self) -> int:
@@ -88,7 +88,7 @@ class ClipDataset(Dataset):
         """Return clip ``item``: decoded images and masks plus the prepared targets."""
         sequence, start = self.clips[item]
         frames = start + self.layout.frame_stride * np.arange(self.layout.total_frames)
-        images, masks = zip(*(self._frame(sequence, int(frame)) for frame in frames))
+        images, masks, depths = zip(*(self._frame(sequence, int(frame)) for frame in frames))
         index = torch.from_numpy(frames.astype(np.int64))
         clip = {key: value[index] for key, value in self.targets[sequence].items()}
         clip[keys.IMAGES] = torch.from_numpy(np.stack(images))
@@ -96,18 +96,24 @@ class ClipDataset(Dataset):
         clip[keys.MASKS] = torch.from_numpy(np.stack(
             [np.zeros((2, height, width), np.uint8) if mask is None else mask
              for mask in masks]))
+        clip[keys.DEPTH] = torch.from_numpy(np.stack(
+            [np.zeros((height, width), np.float32) if depth is None else depth
+             for depth in depths]))
         clip[keys.FRAME_INDEX] = index
         clip[keys.SEQUENCE_INDEX] = torch.tensor(sequence, dtype=torch.long)
         return clip
 
-    def _frame(self, sequence: int, frame: int) -> tuple[np.ndarray, np.ndarray | None]:
-        """Return the fitted (3, H, W) image and (2, H, W) masks (None without masks)."""
+    def _frame(self, sequence: int, frame: int
+               ) -> tuple[np.ndarray, np.ndarray | None, np.ndarray | None]:
+        """Return the fitted (3, H, W) image, (2, H, W) masks and (H, W) depth (or None)."""
         if self._cache is not None and (sequence, frame) in self._cache:
             return self._cache[(sequence, frame)]
         reader = self.readers[sequence]
         labels = reader.read_hand_labels(frame)
+        depth = reader.read_depth(frame)
         fitted = (self.fitter.fit_rgb(reader.read_rgb(frame)),
-                  None if labels is None else self.fitter.fit_masks(labels))
+                  None if labels is None else self.fitter.fit_masks(labels),
+                  None if depth is None else self.fitter.fit_depth(depth))
         if self._cache is not None:
             self._cache[(sequence, frame)] = fitted
         return fitted

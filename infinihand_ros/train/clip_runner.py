@@ -123,7 +123,7 @@ class ClipRunner(nn.Module):
             return value.unflatten(0, (batch_size, frames))
 
         return (geometry.pose_encoding, T_world_cam, used_intrinsics, geometry.hand_masks,
-                *(unflat(value) for value in hands))
+                *(unflat(value) for value in hands), geometry.depth, geometry.depth_conf)
 
 
 def _dense_hands(hands: HandBranchOutput, boxes: HandBoxes, joints_cam: torch.Tensor,

@@ -17,6 +17,7 @@ from infinihand_ros.model.hand.crop_camera import flip_normalized
 from infinihand_ros.model.hand.crop_camera import pixels_to_normalized
 from infinihand_ros.train import sequence_reader as keys
 from infinihand_ros.train.losses import camera_losses
+from infinihand_ros.train.losses import depth_losses
 from infinihand_ros.train.losses import joint_loss
 from infinihand_ros.train.losses import landmark_losses
 from infinihand_ros.train.losses import LossConfig
@@ -53,6 +54,8 @@ class ClipPredictions:
         joints_cam: (B, S, 2, 21, 3) camera-frame joints (m).
         landmarks: (B, S, 2, 21, 2) canonical normalised crop landmarks.
         landmark_targets: (B, S, 2, 21, 2) the annotated joints in the same crops (no grad).
+        depth: (B, S, H, W) predicted depth.
+        depth_confidence: (B, S, H, W) its confidence (>= 1).
 
     """
 
@@ -68,6 +71,8 @@ class ClipPredictions:
     joints_cam: torch.Tensor
     landmarks: torch.Tensor
     landmark_targets: torch.Tensor
+    depth: torch.Tensor
+    depth_confidence: torch.Tensor
 
 
 def scatter_hands(values: torch.Tensor, frame: torch.Tensor, side: torch.Tensor,
@@ -166,6 +171,8 @@ def compute_loss_groups(pred: ClipPredictions, batch: dict[str, torch.Tensor],
             target_T_world_cam=batch[keys.T_WORLD_CAM], hand_valid=hands,
             camera_valid=camera_valid, scale=scale, config=config),
         'camera': lambda: camera_losses(**camera_args, config=config),
+        'depth': lambda: depth_losses(pred.depth, pred.depth_confidence, batch[keys.DEPTH],
+                                      scale, config=config),
         'temporal': lambda: temporal_losses(
             camera=temporal_camera_loss(**camera_args, consecutive=consecutive),
             mano=temporal_mano_loss(**_mano_args(pred, batch), mano_valid=hands,

@@ -34,6 +34,7 @@ from safetensors import safe_open
 IMAGES: Final = 'images'            # (S, 3, H, W) uint8 RGB at the model size
 MASKS: Final = 'masks'              # (S, 2, H, W) uint8 hand masks, 255 = hand
 MASK_VALID: Final = 'mask_valid'    # (S, 2) bool, the mask annotation exists
+DEPTH: Final = 'depth'              # (S, H, W) float32 depth at the model size (m), 0 = unknown
 INTRINSICS: Final = 'intrinsics'    # (S, 3, 3) float64 K at the model size
 T_WORLD_CAM: Final = 'T_world_cam'  # (S, 4, 4) float64 camera-to-world, dataset world
 CAMERA_VALID: Final = 'camera_valid'  # (S,) bool
@@ -68,6 +69,9 @@ class SequenceReader(Protocol):
 
     def read_hand_labels(self, index: int) -> np.ndarray | None:
         """Return (H, W) uint8 labels (0 none, 1 left, 2 right), or None without masks."""
+
+    def read_depth(self, index: int) -> np.ndarray | None:
+        """Return (H, W) float32 depth in metres (0 = unknown), or None without depth."""
 
 
 ReaderFactory = Callable[[Path, dict], SequenceReader]
@@ -121,6 +125,17 @@ class SampleDirectoryReader:
         if labels is None:
             raise InputError(f'{path}: missing or unreadable hand-label image')
         return labels
+
+    def read_depth(self, index: int) -> np.ndarray | None:
+        """Return the depth of frame ``index`` in metres, or None when the sequence has none."""
+        directory = self.root / fmt.DEPTH_DIR
+        if not directory.is_dir():
+            return None
+        path = directory / fmt.frame_file(index, fmt.PNG_SUFFIX)
+        depth = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+        if depth is None or depth.dtype != np.uint16:
+            raise InputError(f'{path}: missing or unreadable uint16 depth image')
+        return depth.astype(np.float32) / np.float32(fmt.DEPTH_UNITS_PER_M)
 
 
 #: Reader factories by ``meta.json`` format name (read-only; pass your own mapping to add).
@@ -197,6 +212,16 @@ class FrameFitter:
         masks = np.zeros((2, *fitted.shape[:2]), np.uint8)  # padding is never a hand
         masks[:, y0:y1, x0:x1] = fitted[y0:y1, x0:x1, :2].transpose(2, 0, 1)
         return masks
+
+    def fit_depth(self, depth: np.ndarray) -> np.ndarray:
+        """Return (H, W) float32 model-size depth of an (h, w) map (nearest; padding 0)."""
+        mapping = self.mapping((depth.shape[1], depth.shape[0]))
+        x0, y0, x1, y1 = mapping.content_box
+        width, height = mapping.model_size
+        fitted = np.zeros((height, width), np.float32)
+        fitted[y0:y1, x0:x1] = cv2.resize(depth, (x1 - x0, y1 - y0),
+                                          interpolation=cv2.INTER_NEAREST)
+        return fitted
 
 
 def _array(annotations: dict[str, np.ndarray], key: str, shape: tuple[int, ...],

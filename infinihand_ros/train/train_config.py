@@ -39,7 +39,8 @@ STAGE_1: Final = 'stage1'
 STAGE_2: Final = 'stage2'
 STAGES: Final = (STAGE_1, STAGE_2)
 #: Loss groups of L_joint (Sec. 3.3), the names of ``TrainConfig.loss_groups``.
-LOSS_GROUPS: Final = ('mask', 'landmarks', 'mano', 'world_joints', 'camera', 'temporal')
+LOSS_GROUPS: Final = ('mask', 'landmarks', 'mano', 'world_joints', 'camera', 'temporal',
+                      'depth')
 #: Groups that need world-space predictions (camera poses), so Stage II only.
 WORLD_GROUPS: Final = ('world_joints', 'camera')
 #: Values of ``TrainConfig.log_format``.

@@ -58,6 +58,22 @@ def test_targets_are_mapped_to_the_model_input(dataset: ClipDataset) -> None:
     assert bool((masks[:, :, [0, -1]] == 0).all())  # letterbox rows (96 x 72 -> 70 x 52)
 
 
+def test_depth_is_metric_at_the_model_size_and_zero_in_the_padding(
+        dataset: ClipDataset, sequence_dirs: list[Path]) -> None:
+    """The clip depth is the source depth (mm PNG -> m) resized nearest into the content box."""
+    item = dataset[0]
+    depth = item[keys.DEPTH]
+    assert depth.shape == (4, 56, 70) and depth.dtype == torch.float32
+    reader = open_sequence(sequence_dirs[0])
+    source = reader.read_depth(0)
+    x0, y0, x1, y1 = dataset.fitter.mapping(reader.image_size).content_box
+    assert bool((depth[0, :y0] == 0).all() and (depth[0, y1:] == 0).all())
+    inside = depth[0, y0:y1, x0:x1]
+    assert 0.0 < float(inside.max()) <= float(source.max())
+    # Nearest resizing keeps values: every model depth is one of the source depths.
+    assert set(np.unique(inside.numpy())) <= set(np.unique(source))
+
+
 def test_missing_annotations_read_as_invalid(sequence_dirs: list[Path]) -> None:
     reader = open_sequence(sequence_dirs[0])
     annotations = reader.annotations()

@@ -35,6 +35,15 @@ def test_paper_configs_follow_the_paper() -> None:
         assert config.optim.weight_decay == 0.01 and config.optim.grad_clip_norm == 1.0
     assert stage1.steps == 300_000 and stage2.steps == 100_000
     assert stage2.gt_box_ratio == 0.5 and len(stage2.loss_groups) == 6
+    assert 'depth' not in stage1.loss_groups + stage2.loss_groups  # pretrained depth
+
+
+def test_tiny_configs_add_the_depth_term_and_train_the_depth_head() -> None:
+    """The tiny model has no pretrained depth: both stages supervise it (ours)."""
+    for name in ('tiny', 'tiny_stage2'):
+        config = load_train_config(name)
+        assert 'depth' in config.loss_groups
+        assert 'geometry.depth_head' not in config.optim.frozen
 
 
 def _write(tmp_path: Path, train: dict, **sections: object) -> Path:
@@ -52,7 +61,7 @@ def _write(tmp_path: Path, train: dict, **sections: object) -> Path:
      r'train\.optim\.groups\[a\]\.lr: must be positive'),
     ({'optim': {'betas': [0.9, 1.5]}}, r'train\.optim\.betas'),
     ({'gt_box_ratio': 1.5}, r'train\.gt_box_ratio'),
-    ({'loss_groups': ['mask', 'depth']}, r'train\.loss_groups: must be one of'),
+    ({'loss_groups': ['mask', 'normals']}, r'train\.loss_groups: must be one of'),
     ({'stage': 'stage1', 'loss_groups': ['mask', 'camera']}, r"\['camera'\] need Stage II"),
     ({'losses': {}}, r'top-level \'losses\' section'),
 ])

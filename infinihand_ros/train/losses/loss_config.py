@@ -172,6 +172,24 @@ class TemporalLossConfig:
 
 
 @dataclass(frozen=True)
+class DepthLossConfig:
+    """Depth loss ``lambda_depth L_depth`` (ours: the tiny model has no pretrained depth).
+
+    Attributes:
+        weight: lambda_depth.
+        confidence_alpha: alpha of the ``- alpha log c`` confidence term (VGGT's form).
+
+    """
+
+    weight: float = 1.0
+    confidence_alpha: float = 0.2
+
+    def __post_init__(self) -> None:
+        """Refuse values that make the loss meaningless (raises ConfigError)."""
+        _require_weights(f'{LOSSES_SECTION}.depth', self)
+
+
+@dataclass(frozen=True)
 class LossConfig:
     """Every loss weight and constant (``config/train_losses.yaml``, section ``losses``).
 
@@ -182,6 +200,7 @@ class LossConfig:
         world_joints: L_joints^w.
         camera: L_camera.
         temporal: L_temp.
+        depth: L_depth (ours, for models without pretrained depth).
         rotation_clamp_eps: epsilon of d_SO(3): the arccos argument is clamped to
             [-1 + eps, 1 - eps], so d(R, R) = arccos(1 - eps) ~ sqrt(2 eps) (a constant floor
             with zero gradient) and the gradient stays finite at 0 and pi.
@@ -195,6 +214,7 @@ class LossConfig:
     world_joints: WorldJointLossConfig = field(default_factory=WorldJointLossConfig)
     camera: CameraLossConfig = field(default_factory=CameraLossConfig)
     temporal: TemporalLossConfig = field(default_factory=TemporalLossConfig)
+    depth: DepthLossConfig = field(default_factory=DepthLossConfig)
     rotation_clamp_eps: float = 1.0e-6
     min_scale_m: float = 0.1
 

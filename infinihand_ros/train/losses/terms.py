@@ -49,6 +49,18 @@ class MaskLosses(LossTerms):
 
 
 @dataclass(frozen=True)
+class DepthLosses(LossTerms):
+    """L_depth (ours, not the paper's): ``total = lambda_depth regression``.
+
+    Attributes:
+        regression: mean over valid pixels of ``c |d_hat - d| / kappa - alpha log c``.
+
+    """
+
+    regression: torch.Tensor
+
+
+@dataclass(frozen=True)
 class LandmarkLosses(LossTerms):
     """L_2D (appendix B.1): ``total = lambda_2D l1``.
 

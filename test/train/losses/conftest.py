@@ -1,6 +1,7 @@
 """Fixtures of the loss tests: a config whose weights all differ."""
 
 from infinihand_ros.train.losses import CameraLossConfig
+from infinihand_ros.train.losses import DepthLossConfig
 from infinihand_ros.train.losses import LandmarkLossConfig
 from infinihand_ros.train.losses import LossConfig
 from infinihand_ros.train.losses import ManoLossConfig
@@ -24,4 +25,5 @@ def config() -> LossConfig:
                                 rel_translation_weight=2.0, epsilon=0.05),
         temporal=TemporalLossConfig(weight=2.0, camera_weight=1.0, mano_weight=2.0,
                                     mask_weight=3.0, landmarks_weight=4.0),
+        depth=DepthLossConfig(weight=2.5, confidence_alpha=0.3),
         rotation_clamp_eps=1e-6, min_scale_m=0.1)
