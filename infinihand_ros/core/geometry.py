@@ -16,14 +16,17 @@ MIN_PROJECTION_DEPTH_M: Final = 0.01
 
 
 def axis_angle_to_matrix(axis_angle: np.ndarray) -> np.ndarray:
-    """Convert axis-angle vectors (..., 3), radians, to rotation matrices (..., 3, 3)."""
-    aa = np.asarray(axis_angle, dtype=np.float64)
+    """Convert axis-angle vectors (..., 3), radians, to rotation matrices (..., 3, 3).
+
+    The input is copied: scipy refuses read-only buffers (e.g. a frozen dataclass's arrays).
+    """
+    aa = np.array(axis_angle, dtype=np.float64)
     return Rotation.from_rotvec(aa.reshape(-1, 3)).as_matrix().reshape(aa.shape[:-1] + (3, 3))
 
 
 def matrix_to_axis_angle(matrix: np.ndarray) -> np.ndarray:
-    """Convert rotation matrices (..., 3, 3) to axis-angle vectors (..., 3), radians."""
-    mat = np.asarray(matrix, dtype=np.float64)
+    """Convert rotation matrices (..., 3, 3) to axis-angle vectors (..., 3), radians (copied)."""
+    mat = np.array(matrix, dtype=np.float64)
     return Rotation.from_matrix(mat.reshape(-1, 3, 3)).as_rotvec().reshape(mat.shape[:-2] + (3,))
 
 
