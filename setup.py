@@ -18,6 +18,7 @@ setup(
         (f'share/{PACKAGE_NAME}/msg_schemas/msg', glob('msg_schemas/msg/*.msg')),
         (f'share/{PACKAGE_NAME}/data', glob('data/*.yaml')),
         (f'share/{PACKAGE_NAME}/data/sample_bag', glob('data/sample_bag/*')),
+        *((f'share/{PACKAGE_NAME}/{model}', glob(f'{model}/*')) for model in glob('models/*')),
     ],
     install_requires=['setuptools'],
     extras_require={'test': ['pytest']},
@@ -30,6 +31,9 @@ setup(
         'console_scripts': [
             f'synth = {PACKAGE_NAME}.synth.cli:main',
             f'train = {PACKAGE_NAME}.train.cli:main',
+            f'estimator = {PACKAGE_NAME}.ros.estimator_main:main',
+            f'replay = {PACKAGE_NAME}.ros.replay_cli:main',
+            f'record = {PACKAGE_NAME}.ros.record_cli:main',
         ],
     },
 )

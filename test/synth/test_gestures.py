@@ -17,7 +17,7 @@ def test_zero_gesture_is_the_flat_hand() -> None:
 
 
 def test_flexion_spread_and_opposition_turn_about_their_axes() -> None:
-    """Index base: 30 deg spread (palm normal y) then 60 deg flexion (z); thumb base: opposition."""
+    """Index base: 30 deg spread (about y) then 60 deg flexion (z); thumb base: opposition."""
     vector = np.zeros(21)
     vector[3] = 60.0        # index, base joint flexion
     vector[16] = 30.0       # index spread

@@ -1,0 +1,77 @@
+"""The estimator's ``/diagnostics`` status: level, message and key/value pairs (no ROS types).
+
+Level OK while images arrive and are published; WARN when no image came for a whole statistics
+window, when images are being dropped or refused in that time, or when bundle adjustment has
+failed (poses continue unrefined); STALE before the first image.
+"""
+
+from dataclasses import dataclass
+import math
+
+from infinihand_ros.ros.estimator_statistics import OK
+from infinihand_ros.ros.estimator_statistics import STALE
+from infinihand_ros.ros.estimator_statistics import StatisticsSnapshot
+from infinihand_ros.ros.estimator_statistics import WARN
+
+
+@dataclass(frozen=True)
+class DiagnosticReport:
+    """One diagnostic_msgs/DiagnosticStatus: level, message and ordered key/value strings."""
+
+    level: int
+    message: str
+    values: tuple[tuple[str, str], ...]
+
+
+def ba_state(engine_statistics: dict[str, object]) -> str:
+    """Return the BA state of the engine's statistics ('off' when the engine runs no BA)."""
+    ba = engine_statistics.get('ba')
+    return 'off' if not isinstance(ba, dict) else str(ba.get('state', 'unknown'))
+
+
+def _format(value: object) -> str:
+    """Return a figure as diagnostics text (floats with 3 decimals, NaN as 'nan')."""
+    if isinstance(value, float):
+        return 'nan' if math.isnan(value) else f'{value:.3f}'
+    return str(value)
+
+
+def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str, object],
+                      window_s: float, previous: StatisticsSnapshot | None = None
+                      ) -> DiagnosticReport:
+    """Return the status of the node from its figures and the engine's statistics.
+
+    Args:
+        snapshot: the node's figures now.
+        engine_statistics: ``StreamingEngine.statistics`` (metric scale, BA state).
+        window_s: the statistics window, seconds (no image for this long: WARN).
+        previous: the figures of the last report, to tell new drops and bad frames.
+
+    """
+    state = ba_state(engine_statistics)
+    values = (
+        ('input_rate_hz', snapshot.input_rate_hz), ('output_rate_hz', snapshot.output_rate_hz),
+        ('latency_p50_ms', snapshot.latency_p50_ms), ('latency_p95_ms', snapshot.latency_p95_ms),
+        ('processing_p50_ms', snapshot.processing_p50_ms),
+        ('processing_p95_ms', snapshot.processing_p95_ms),
+        ('frames_received', snapshot.received), ('frames_published', snapshot.published),
+        ('frames_dropped', snapshot.dropped), ('bad_frames', snapshot.bad),
+        ('metric_scale', engine_statistics.get('metric_scale', float('nan'))),
+        ('metric_scale_state', engine_statistics.get('metric_scale_state', 'unknown')),
+        ('pose_version', engine_statistics.get('pose_version', 0)), ('ba_state', state))
+    text = tuple((key, _format(value)) for key, value in values)
+    if snapshot.received == 0:
+        return DiagnosticReport(STALE, 'waiting for images', text)
+    problems = []
+    if snapshot.seconds_since_input > window_s:
+        problems.append(f'no image for {snapshot.seconds_since_input:.1f} s')
+    if previous is not None and snapshot.dropped > previous.dropped:
+        problems.append(f'{snapshot.dropped - previous.dropped} frame(s) dropped (input faster '
+                        'than the model)')
+    if previous is not None and snapshot.bad > previous.bad:
+        problems.append(f'{snapshot.bad - previous.bad} bad frame(s) skipped')
+    if state == 'failed':
+        problems.append('bundle adjustment failed: poses are unrefined')
+    if problems:
+        return DiagnosticReport(WARN, '; '.join(problems), text)
+    return DiagnosticReport(OK, 'running', text)

@@ -1,0 +1,182 @@
+"""The ``infinihand_estimator`` node: camera stream in, camera pose and world-space hands out.
+
+A thin adapter: message -> ``image_decoding`` / ``camera_info_pairing`` -> ``EstimatorPipeline``
+(the streaming engine and the output rules) -> ``OutputPublishers``. The image callbacks only
+put the message into a one-frame mailbox (``LatestFrameSlot``); a dedicated inference thread
+takes the newest one, so frames arriving while the model is busy are dropped and counted and the
+latency never grows. A bad frame (encoding, size, truncated data, bad CameraInfo) is logged,
+throttled, counted and skipped. Inputs (relative, remappable): ``image``, ``image/compressed``,
+``camera_info``, with sensor-data QoS overridable by parameters.
+"""
+
+from collections import OrderedDict
+import threading
+from typing import Any, Final
+
+from diagnostic_msgs.msg import DiagnosticArray
+from infinihand_ros.bag.messages import ns_from_stamp
+from infinihand_ros.core import topics
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.errors import ModelOutputError
+from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.ros import msg_builders
+from infinihand_ros.ros.camera_info_pairing import CameraInfoPairing
+from infinihand_ros.ros.camera_info_pairing import IntrinsicsChoice
+from infinihand_ros.ros.diagnostics_report import diagnostic_report
+from infinihand_ros.ros.engine_setup import engine_config_for
+from infinihand_ros.ros.estimator_config import NODE_NAME
+from infinihand_ros.ros.estimator_pipeline import EstimatorPipeline
+from infinihand_ros.ros.estimator_statistics import EstimatorStatistics
+from infinihand_ros.ros.estimator_statistics import StatisticsSnapshot
+from infinihand_ros.ros.image_decoding import decode_image
+from infinihand_ros.ros.latest_frame import LatestFrameSlot
+from infinihand_ros.ros.output_publishers import OutputPublishers
+from infinihand_ros.ros.parameter_declaration import declare_estimator_parameters
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos_overriding_options import QoSOverridingOptions
+from sensor_msgs.msg import CameraInfo
+from sensor_msgs.msg import CompressedImage
+from sensor_msgs.msg import Image
+
+NS_PER_S: Final = 1e9
+#: How often the inference thread checks for shutdown while no frame comes, s.
+TAKE_TIMEOUT_S: Final = 0.2
+DIAGNOSTICS_TOPIC: Final = '/diagnostics'
+#: Arrival times remembered (the engine holds back at most its anchor frames).
+ARRIVALS_KEPT: Final = 256
+
+
+class EstimatorNode(Node):
+    """Parameters, subscriptions, publishers and the inference thread of the estimator."""
+
+    def __init__(self, **node_kwargs: Any) -> None:
+        """Declare and check the parameters, build the engine, start the inference thread.
+
+        Raises:
+            ConfigError: naming the parameter for a bad value.
+            CheckpointError: for a checkpoint that cannot be loaded.
+
+        """
+        super().__init__(NODE_NAME, **node_kwargs)
+        self.config = declare_estimator_parameters(self)
+        engine = StreamingEngine(engine_config_for(self.config.engine))
+        self.pipeline = EstimatorPipeline(self.config, engine)
+        self._engine_statistics: dict[str, object] = engine.statistics
+        self.statistics = EstimatorStatistics(self.config.diagnostics.window_s)
+        self._previous: StatisticsSnapshot | None = None
+        self._pairing = CameraInfoPairing(int(self.config.camera.info_tolerance_s * NS_PER_S),
+                                          self.config.camera.fallback)
+        self._pairing_lock = threading.Condition()
+        self._paired_once = False
+        self._slot: LatestFrameSlot[tuple[Any, int]] = LatestFrameSlot()
+        self._arrivals: OrderedDict[int, int] = OrderedDict()  # image stamp -> arrival, ns
+        self.outputs = OutputPublishers(self, self.config.outputs,
+                                        self.config.frames.world_frame_id)
+        self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
+        overrides = QoSOverridingOptions.with_default_policies()
+        for msg_type, topic in ((Image, 'image'), (CompressedImage, 'image/compressed')):
+            self.create_subscription(msg_type, topic, self._on_image, qos_profile_sensor_data,
+                                     qos_overriding_options=overrides)
+        self.create_subscription(CameraInfo, 'camera_info', self._on_camera_info,
+                                 qos_profile_sensor_data, qos_overriding_options=overrides)
+        self.create_timer(self.config.diagnostics.period_s, self._publish_diagnostics)
+        self._worker = threading.Thread(target=self._run_inference, name='inference',
+                                        daemon=True)
+        self._worker.start()
+        self.get_logger().info(
+            f'ready: engine {engine.config.mode} on {engine.config.device}, camera motion '
+            f'{self.config.camera.motion}, smoothing {self.config.smoothing.mode}')
+
+    def close(self) -> None:
+        """Stop the inference thread and close the engine (call before ``destroy_node``)."""
+        self._slot.close()
+        self._worker.join()
+        self.pipeline.close()
+
+    def _now_ns(self) -> int:
+        """Return the node clock's time, nanoseconds (ROS time; sim time when enabled)."""
+        return self.get_clock().now().nanoseconds
+
+    def _on_image(self, msg: Image | CompressedImage) -> None:
+        """Keep only the newest image; count the one it replaces as dropped."""
+        now = self._now_ns()
+        self.statistics.frame_received(now / NS_PER_S)
+        if self._slot.put((msg, now)):
+            self.statistics.frame_dropped()
+
+    def _on_camera_info(self, msg: CameraInfo) -> None:
+        """Store a CameraInfo for pairing; a bad one is logged, counted and ignored."""
+        try:
+            with self._pairing_lock:
+                self._pairing.add(msg)
+                self._pairing_lock.notify_all()
+        except InputError as exc:
+            self._bad_frame(f'ignoring a CameraInfo: {exc}')
+
+    def _bad_frame(self, text: str) -> None:
+        """Count and log (throttled) a refused message."""
+        self.statistics.frame_bad()
+        self.get_logger().warning(text,
+                                  throttle_duration_sec=self.config.bad_frame_log_period_s)
+
+    def _run_inference(self) -> None:
+        """Take the newest image, run it through the pipeline, publish; until closed."""
+        while not self._slot.closed:
+            item = self._slot.take(TAKE_TIMEOUT_S)
+            if item is not None:
+                self._process(*item)
+
+    def _process(self, msg: Image | CompressedImage, arrival_ns: int) -> None:
+        """Decode, pair with intrinsics, run the pipeline and publish one image."""
+        stamp_ns = ns_from_stamp(msg.header.stamp)
+        self._arrivals[stamp_ns] = arrival_ns
+        while len(self._arrivals) > ARRIVALS_KEPT:
+            self._arrivals.popitem(last=False)
+        try:
+            rgb = decode_image(msg)
+            choice = self._intrinsics_for(stamp_ns, rgb.shape[1], rgb.shape[0])
+            outputs = self.pipeline.process(rgb, stamp_ns, choice.intrinsics)
+        except InputError as exc:
+            self._bad_frame(f'skipping the image stamped {stamp_ns}: {exc}')
+            return
+        except ModelOutputError as exc:
+            self.statistics.frame_bad()
+            self.get_logger().error(f'skipping the image stamped {stamp_ns}: {exc}',
+                                    throttle_duration_sec=self.config.bad_frame_log_period_s)
+            return
+        self._engine_statistics = self.pipeline.engine.statistics
+        camera_frame = (self.config.frames.camera_frame_id or msg.header.frame_id
+                        or topics.CAMERA_FRAME_ID)
+        for position, output in enumerate(outputs, start=1):
+            # The path holds every output of this push: publish it with the newest one only.
+            path = self.pipeline.path.poses() if position == len(outputs) else None
+            self.outputs.publish(output, camera_frame, path)
+            now = self._now_ns()
+            arrival = self._arrivals.get(output.stamp_ns, now)
+            self.statistics.frame_published(now / NS_PER_S, (now - output.stamp_ns) / NS_PER_S,
+                                            (now - arrival) / NS_PER_S)
+
+    def _intrinsics_for(self, stamp_ns: int, width: int, height: int) -> IntrinsicsChoice:
+        """Pair an image with its CameraInfo, waiting a little for one that comes just after.
+
+        The first image always waits (its CameraInfo may be the first one); later images wait
+        only when the camera publishes CameraInfos.
+        """
+        with self._pairing_lock:
+            if self._pairing.has_infos or not self._paired_once:
+                self._paired_once = True
+                self._pairing_lock.wait_for(
+                    lambda: self._pairing.paired(stamp_ns, width, height) is not None,
+                    self.config.camera.info_wait_s)
+            return self._pairing.intrinsics_for(stamp_ns, width, height)
+
+    def _publish_diagnostics(self) -> None:
+        """Publish the node's figures on /diagnostics."""
+        now = self._now_ns()
+        snapshot = self.statistics.snapshot(now / NS_PER_S)
+        report = diagnostic_report(snapshot, self._engine_statistics,
+                                   self.config.diagnostics.window_s, self._previous)
+        self._previous = snapshot
+        self._diagnostics.publish(msg_builders.diagnostic_array_msg(
+            now, f'{self.get_name()}: estimator', self.get_fully_qualified_name(), report))

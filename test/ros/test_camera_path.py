@@ -1,0 +1,31 @@
+"""The bounded, refreshable camera path (ros/camera_path.py)."""
+
+from infinihand_ros.ros.camera_path import CameraPath
+from infinihand_ros.ros.frame_outputs import PoseFields
+import numpy as np
+
+
+def pose(x: float) -> PoseFields:
+    """Return a pose at (x, 0, 0)."""
+    return PoseFields(np.array([x, 0.0, 0.0]), np.array([0.0, 0.0, 0.0, 1.0]))
+
+
+def test_path_is_bounded_oldest_out() -> None:
+    """Only the newest capacity poses stay, oldest first."""
+    path = CameraPath(2)
+    for index in range(3):
+        path.add(index, 100 + index, pose(index), 0)
+    assert [stamp for stamp, _ in path.poses()] == [101, 102]
+    assert len(path) == 2
+
+
+def test_new_version_refreshes_known_poses() -> None:
+    """With a new pose version, poses the lookup still knows are replaced; others kept."""
+    path = CameraPath(10)
+    path.add(0, 100, pose(0.0), 0)
+    path.add(1, 101, pose(1.0), 0)
+    lookup = {0: pose(10.0)}.get
+    path.add(2, 102, pose(2.0), 1, lookup)
+    assert [p.position[0] for _, p in path.poses()] == [10.0, 1.0, 2.0]
+    path.add(3, 103, pose(3.0), 1, {1: pose(99.0)}.get)  # same version: no refresh
+    assert [p.position[0] for _, p in path.poses()] == [10.0, 1.0, 2.0, 3.0]

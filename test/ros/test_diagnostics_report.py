@@ -1,0 +1,45 @@
+"""The /diagnostics status (ros/diagnostics_report.py)."""
+
+from dataclasses import replace
+
+from infinihand_ros.ros.diagnostics_report import ba_state
+from infinihand_ros.ros.diagnostics_report import diagnostic_report
+from infinihand_ros.ros.estimator_statistics import OK
+from infinihand_ros.ros.estimator_statistics import STALE
+from infinihand_ros.ros.estimator_statistics import StatisticsSnapshot
+from infinihand_ros.ros.estimator_statistics import WARN
+
+RUNNING = StatisticsSnapshot(10.0, 9.5, 40.0, 80.0, 20.0, 30.0, 100, 0, 0, 95, 0.05)
+ENGINE = {'metric_scale': 0.25, 'metric_scale_state': 'tracking', 'pose_version': 4, 'ba': None}
+
+
+def test_running_is_ok_with_the_figures() -> None:
+    """All figures appear as text; the level is OK."""
+    report = diagnostic_report(RUNNING, ENGINE, 5.0, RUNNING)
+    values = dict(report.values)
+    assert report.level == OK
+    assert values['input_rate_hz'] == '10.000' and values['latency_p95_ms'] == '80.000'
+    assert values['metric_scale'] == '0.250' and values['ba_state'] == 'off'
+    assert values['frames_dropped'] == '0' and values['bad_frames'] == '0'
+
+
+def test_warnings_name_their_cause() -> None:
+    """New drops, new bad frames, no input and a failed BA each give WARN with a reason."""
+    dropped = replace(RUNNING, dropped=4, bad=1, seconds_since_input=9.0)
+    report = diagnostic_report(dropped, {**ENGINE, 'ba': {'state': 'failed'}}, 5.0, RUNNING)
+    assert report.level == WARN
+    for text in ('4 frame(s) dropped', '1 bad frame(s)', 'no image for 9.0 s',
+                 'bundle adjustment failed'):
+        assert text in report.message
+
+
+def test_stale_before_the_first_image() -> None:
+    """No image received yet: STALE."""
+    report = diagnostic_report(replace(RUNNING, received=0), ENGINE, 5.0)
+    assert report.level == STALE
+
+
+def test_ba_state() -> None:
+    """The BA state comes from the engine statistics."""
+    assert ba_state({'ba': {'state': 'running'}}) == 'running'
+    assert ba_state({'ba': None}) == 'off'

@@ -1,0 +1,124 @@
+"""The installed estimator live: sample bag replayed in, outputs recorded, clean SIGINT exit.
+
+Separate processes (estimator, record, replay) on a private DDS domain with localhost discovery.
+The recorded outputs are checked against the bag's stamps and against the offline engine run
+(through the same pipeline rules) on exactly the frames the node processed.
+"""
+
+from pathlib import Path
+import time
+
+from infinihand_ros.bag.camera_stream import read_camera_frames
+from infinihand_ros.bag.messages import ns_from_stamp
+from infinihand_ros.bag.reader import BagReader
+from infinihand_ros.core.hand_conventions import JOINT_NAMES
+from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.ros.engine_setup import engine_config_for
+from infinihand_ros.ros.estimator_config import estimator_config_from_parameters
+from infinihand_ros.ros.estimator_config import load_estimator_defaults
+from infinihand_ros.ros.estimator_pipeline import EstimatorPipeline
+from live_processes import fresh_domain_id
+from live_processes import interrupt
+from live_processes import LIB
+from live_processes import NODE
+from live_processes import REMAPS
+from live_processes import ros_env
+from live_processes import running
+from live_processes import SAMPLE_BAG
+from live_processes import SHARE
+from live_processes import start
+from live_processes import wait_for_text
+import numpy as np
+import pytest
+
+pytestmark = [pytest.mark.ros, pytest.mark.slow]
+pytest.importorskip('rclpy', reason='rclpy is not importable (source scripts/env.sh)')
+
+OUTPUTS = [f'{NODE}/camera_pose', f'{NODE}/hands/left/landmarks',
+           f'{NODE}/hands/right/landmarks', f'{NODE}/hands/right/wrist_frame_landmarks',
+           f'{NODE}/hands/joint_names', f'{NODE}/camera_path', f'{NODE}/hands/markers',
+           f'{NODE}/camera_info', '/diagnostics']
+READY = 'ready: engine'
+#: Live and offline runs do the same float math on the same frames; allow for thread order.
+OFFLINE_TOLERANCE = 1e-5
+
+
+@pytest.fixture(autouse=True)
+def _installed() -> None:
+    if not (LIB / 'estimator').exists():
+        pytest.skip('the package is not built (colcon build --symlink-install)')
+
+
+def _recorded(bag: Path) -> dict[str, list]:
+    """Return the recorded messages by topic."""
+    by_topic: dict[str, list] = {}
+    with BagReader(bag) as reader:
+        for topic, _, msg in reader.messages(sorted(reader.topics())):
+            by_topic.setdefault(topic, []).append(msg)
+    return by_topic
+
+
+def _offline(stamps: list[int]) -> list:
+    """Run the node's pipeline offline on the bag frames with these stamps."""
+    config = estimator_config_from_parameters(load_estimator_defaults())
+    wanted = set(stamps)
+    outputs = []
+    with StreamingEngine(engine_config_for(config.engine)) as engine:
+        pipeline = EstimatorPipeline(config, engine)
+        for frame in read_camera_frames(SAMPLE_BAG):
+            if frame.timestamp_ns in wanted:
+                outputs += pipeline.process(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+        outputs += pipeline.flush()
+    return outputs
+
+
+def test_sample_bag_through_the_live_node(tmp_path: Path) -> None:
+    """Stamps match inputs, 21-joint arrays, offline-equal results, SIGINT exits 0."""
+    env = ros_env(fresh_domain_id())
+    params = ['--params-file', str(SHARE / 'config' / 'estimator.yaml')]
+    node_log = tmp_path / 'estimator.log'
+    with running('estimator', ['--ros-args', *params, *REMAPS], env, node_log) as node, \
+            running('record', ['-o', str(tmp_path / 'out'), *OUTPUTS], env,
+                    tmp_path / 'record.log') as recorder:
+        assert wait_for_text(node_log, READY, node, 120.0), node_log.read_text()
+        replay = start('replay', [str(SAMPLE_BAG), '--rate', '2', '--wait-for-subscribers',
+                                  '20', '--topics', '/camera/image_raw/compressed',
+                                  '/camera/camera_info'], env, tmp_path / 'replay.log')
+        assert replay.wait(120) == 0, (tmp_path / 'replay.log').read_text()
+        assert wait_for_text(node_log, READY, node, 1.0)
+        time.sleep(5.0)  # the last frame's inference and publication
+        assert interrupt(node) == 0, node_log.read_text()
+        assert interrupt(recorder) == 0, (tmp_path / 'record.log').read_text()
+    recorded = _recorded(tmp_path / 'out')
+    with BagReader(SAMPLE_BAG) as reader:
+        inputs = {ns_from_stamp(m.header.stamp)
+                  for _, _, m in reader.messages(['/camera/image_raw/compressed'])}
+    poses = recorded[f'{NODE}/camera_pose']
+    stamps = [ns_from_stamp(m.header.stamp) for m in poses]
+    assert len(stamps) >= 10
+    for topic in OUTPUTS[:4] + [f'{NODE}/camera_path', f'{NODE}/camera_info']:
+        assert {ns_from_stamp(m.header.stamp) for m in recorded[topic]} <= inputs, topic
+    assert {ns_from_stamp(marker.header.stamp) for m in recorded[f'{NODE}/hands/markers']
+            for marker in m.markers} <= inputs
+    assert stamps == sorted(stamps)
+    for topic in OUTPUTS[1:4]:
+        assert {len(m.poses) for m in recorded[topic]} <= {0, 21}, topic
+    assert recorded[f'{NODE}/hands/joint_names'][0].data.split(',') == list(JOINT_NAMES)
+    assert all(m.header.frame_id == 'world' for m in poses)
+    values = {v.key: v.value for v in recorded['/diagnostics'][-1].status[0].values}
+    assert int(values['frames_received']) == len(inputs)
+    assert int(values['frames_published']) == len(stamps)
+    assert int(values['frames_received']) == len(stamps) + int(values['frames_dropped'])
+    offline = {out.stamp_ns: out for out in _offline(stamps)}
+    assert sorted(offline) == stamps
+    for msg, stamp in zip(poses, stamps):
+        position = msg.pose.position
+        np.testing.assert_allclose([position.x, position.y, position.z],
+                                   offline[stamp].camera_pose.position, atol=OFFLINE_TOLERANCE)
+    for msg in recorded[f'{NODE}/hands/right/landmarks']:
+        hand = offline[ns_from_stamp(msg.header.stamp)].hands[RIGHT]
+        assert len(msg.poses) == (0 if hand is None else 21)
+        if hand is not None:
+            got = np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses])
+            np.testing.assert_allclose(got, hand.landmarks_world, atol=OFFLINE_TOLERANCE)

@@ -1,0 +1,60 @@
+"""One shape per side over time (ros/shape_consensus.py)."""
+
+from dataclasses import replace
+
+from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.core.datatypes import ManoParams
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.mano.builtin import BuiltinHandModel
+from infinihand_ros.ros.estimator_config import ShapeConfig
+from infinihand_ros.ros.shape_consensus import reshape_hand
+from infinihand_ros.ros.shape_consensus import ShapeConsensus
+import numpy as np
+from ros_builders import make_hand
+import torch
+
+
+def test_confident_betas_are_averaged_by_confidence_then_fixed() -> None:
+    """Weighted mean of confident samples after min_samples; later samples change nothing."""
+    consensus = ShapeConsensus(ShapeConfig(min_confidence=0.5, min_samples=2))
+    consensus.observe(make_hand(RIGHT, confidence=0.6, betas=np.full(10, 1.0)))
+    assert consensus.shared(RIGHT) is None
+    consensus.observe(make_hand(RIGHT, confidence=0.2, betas=np.full(10, 9.0)))  # ignored
+    consensus.observe(make_hand(RIGHT, confidence=1.0, betas=np.full(10, 3.0)))
+    expected = (0.6 * 1.0 + 1.0 * 3.0) / 1.6
+    np.testing.assert_allclose(consensus.shared(RIGHT), np.full(10, expected))
+    consensus.observe(make_hand(RIGHT, confidence=1.0, betas=np.full(10, -5.0)))
+    np.testing.assert_allclose(consensus.shared(RIGHT), np.full(10, expected))
+    assert consensus.shared(LEFT) is None
+
+
+def _model_hand(model: BuiltinHandModel, betas: np.ndarray, pose: CameraPose):
+    """Return a hand whose joints are the model's for ``betas``, placed in the world by pose."""
+    rng = np.random.default_rng(4)
+    mano = ManoParams(rng.normal(scale=0.3, size=3), rng.normal(scale=0.2, size=(15, 3)), betas,
+                      np.array([0.05, -0.02, 0.4]))
+    with torch.inference_mode():
+        joints = model(torch.as_tensor(mano.global_orient[None]),
+                       torch.as_tensor(mano.hand_pose[None]), torch.as_tensor(betas[None]),
+                       torch.as_tensor(mano.transl[None])).joints[0].double().numpy()
+    hand = make_hand(RIGHT, betas=betas)
+    return replace(hand, mano_cam=mano, joints_cam=joints, mano_world=None,
+                   joints_world=pose.to_world(joints)), joints
+
+
+def test_reshape_keeps_the_wrist_and_takes_the_shared_shape() -> None:
+    """Root-relative camera joints become the model's for the shared betas; wrist unchanged."""
+    model = BuiltinHandModel(RIGHT, dtype=torch.float64)
+    pose = CameraPose.identity()
+    hand, joints = _model_hand(model, np.zeros(10), pose)
+    shared = np.linspace(-1.0, 1.0, 10)
+    _, joints_shared = _model_hand(model, shared, pose)
+    reshaped = reshape_hand(hand, shared, model)
+    np.testing.assert_allclose(reshaped.joints_cam[0], joints[0], atol=1e-12)
+    np.testing.assert_allclose(reshaped.joints_cam - reshaped.joints_cam[0],
+                               joints_shared - joints_shared[0], atol=1e-9)
+    np.testing.assert_array_equal(reshaped.mano_cam.betas, shared)
+    assert np.abs(joints_shared - joints_shared[0] - (joints - joints[0])).max() > 1e-4
+    same = reshape_hand(hand, np.zeros(10), model)
+    np.testing.assert_allclose(same.joints_cam, hand.joints_cam, atol=1e-12)
