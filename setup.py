@@ -34,6 +34,7 @@ setup(
             f'estimator = {PACKAGE_NAME}.ros.estimator_main:main',
             f'replay = {PACKAGE_NAME}.ros.replay_cli:main',
             f'record = {PACKAGE_NAME}.ros.record_cli:main',
+            f'bag_to_dataset = {PACKAGE_NAME}.convert.cli:console_main',
         ],
     },
 )

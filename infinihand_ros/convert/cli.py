@@ -1,0 +1,154 @@
+"""Command line ``bag_to_dataset INPUT... --output DIR``: bags and videos to a LeRobot dataset.
+
+Exit codes: 0 when every input converted (or was already in the dataset), 1 when at least one
+input failed (all others are converted and written), 2 for usage errors (bad flags, settings
+or output directory), 130 when interrupted (the dataset keeps every finished episode).
+"""
+
+import argparse
+from dataclasses import replace
+import json
+import logging
+from pathlib import Path
+import sys
+from typing import Final
+
+from infinihand_ros.convert.config import ConvertConfig
+from infinihand_ros.convert.config import load_convert_config
+from infinihand_ros.convert.dataset_writer import DatasetWriter
+from infinihand_ros.convert.inputs import discover_inputs
+from infinihand_ros.convert.report import EpisodeReport
+from infinihand_ros.convert.report import FAILED
+from infinihand_ros.convert.report import summary_table
+from infinihand_ros.convert.run import ConversionRun
+from infinihand_ros.convert.run import RunOptions
+from infinihand_ros.core.atomic_io import check_writable_location
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.errors import InfiniHandError
+from tqdm import tqdm
+
+EXIT_OK: Final = 0
+EXIT_FAILED: Final = 1
+EXIT_USAGE: Final = 2
+EXIT_INTERRUPTED: Final = 130
+REPORT_FILE: Final = 'conversion_report.json'
+
+
+class UsageError(Exception):
+    """A flag, setting or output directory that makes the run impossible."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Arguments of bag_to_dataset (defaults of optional ones come from config/convert.yaml)."""
+    parser = argparse.ArgumentParser(
+        prog='bag_to_dataset',
+        description='Convert rosbag2/ROS 1 bags and videos into a LeRobot v3.0 dataset of hand '
+                    'demonstrations (one episode per input or per time window).')
+    parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
+                        help='bag directory, .mcap/.bag file, video, or folder of them')
+    parser.add_argument('--output', required=True, type=Path, help='dataset directory (new, '
+                        'or one written by bag_to_dataset: it is resumed and extended)')
+    parser.add_argument('--fps', type=int, help='output frame rate in Hz (default 10)')
+    parser.add_argument('--task', help='task string of every episode (default: the sidecar '
+                        '<input>.task.txt, else "demonstration")')
+    parser.add_argument('--image-topic', help='image topic of the bags (default: auto-detect)')
+    parser.add_argument('--episode-seconds', type=float,
+                        help='split inputs into episodes of at most this many seconds')
+    parser.add_argument('--intrinsics', help='fx,fy,cx,cy,width,height of video inputs '
+                        '(default: predicted by the model)')
+    parser.add_argument('--engine-config', type=Path, help='engine YAML (default: '
+                        'config/engine.yaml)')
+    parser.add_argument('--no-ba', action='store_true', help='turn bundle adjustment off')
+    parser.add_argument('--no-estimates-bag', action='store_true',
+                        help='do not write the MCAP bag of estimates per episode')
+    parser.add_argument('--config', type=Path, help='converter settings (default: '
+                        'config/convert.yaml)')
+    parser.add_argument('--quiet', action='store_true', help='no progress bars')
+    return parser
+
+
+def _intrinsics(text: str | None) -> Intrinsics | None:
+    if text is None:
+        return None
+    parts = text.split(',')
+    try:
+        if len(parts) != 6:
+            raise ValueError(f'{len(parts)} values')
+        fx, fy, cx, cy = (float(part) for part in parts[:4])
+        return Intrinsics(fx, fy, cx, cy, int(parts[4]), int(parts[5]))
+    except ValueError as exc:
+        raise UsageError(f'--intrinsics {text!r}: expected fx,fy,cx,cy,width,height '
+                         f'({exc})') from exc
+
+
+def validate_args(args: argparse.Namespace) -> tuple[ConvertConfig, RunOptions]:
+    """Return the settings and options the arguments describe.
+
+    Raises:
+        UsageError: for a bad settings file or value, or an output that cannot be written.
+
+    """
+    try:
+        config = load_convert_config(args.config)
+        engine = config.engine
+        if args.engine_config is not None:
+            engine = replace(engine, config=str(args.engine_config))
+        if args.no_ba:
+            engine = replace(engine, bundle_adjustment=False)
+        overrides = {'engine': engine}
+        for key, value in (('fps', args.fps), ('task', args.task),
+                           ('episode_max_s', args.episode_seconds)):
+            if value is not None:
+                overrides[key] = value
+        if args.no_estimates_bag:
+            overrides['estimates_bag'] = False
+        config = replace(config, **overrides)
+        check_writable_location(args.output, '--output')
+    except InfiniHandError as exc:
+        raise UsageError(str(exc)) from exc
+    return config, RunOptions(args.output, args.image_topic, _intrinsics(args.intrinsics),
+                              progress=not args.quiet)
+
+
+def _finish(reports: list[EpisodeReport], output: Path) -> None:
+    """Print every report and the summary; save them beside the dataset."""
+    for report in reports:
+        print('\n'.join(report.lines()))
+    print(summary_table(reports))
+    data = json.dumps([report.to_dict() for report in reports], indent=2)
+    (output / REPORT_FILE).write_text(data, encoding='utf-8')
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the converter; return the exit code."""
+    logging.basicConfig(level=logging.WARNING, format='%(levelname)s %(name)s: %(message)s')
+    args = build_parser().parse_args(argv)
+    try:
+        config, options = validate_args(args)
+        writer = DatasetWriter(options.output, config)
+    except (UsageError, InfiniHandError) as exc:
+        print(f'bag_to_dataset: error: {exc}', file=sys.stderr)
+        return EXIT_USAGE
+    sources, failures = discover_inputs(args.inputs)
+    run = ConversionRun(config, options, writer)
+    run.reports += [EpisodeReport(str(f.path), status=FAILED, error=f.reason)
+                    for f in failures]
+    interrupted = False
+    try:
+        for source in tqdm(sources, desc='inputs', unit='input', disable=not options.progress):
+            run.convert(source)
+    except KeyboardInterrupt:
+        interrupted = True
+        print(f'interrupted: the dataset keeps its {writer.num_episodes} finished episodes',
+              file=sys.stderr)
+    finally:
+        run.close()
+    _finish(run.reports, options.output)
+    if interrupted:
+        return EXIT_INTERRUPTED
+    return EXIT_FAILED if any(r.status == FAILED for r in run.reports) else EXIT_OK
+
+
+def console_main() -> None:
+    """Entry point of the console script."""
+    sys.exit(main())

@@ -1,0 +1,103 @@
+"""Per-episode conversion reports and the summary table printed at the end of a run."""
+
+from collections import Counter
+from dataclasses import asdict
+from dataclasses import dataclass
+from dataclasses import field
+from typing import Any, Final
+
+CONVERTED: Final = 'converted'
+FAILED: Final = 'failed'
+SKIPPED: Final = 'already in dataset'
+
+
+@dataclass
+class EpisodeReport:
+    """What happened to one episode (one input, or one time window of it).
+
+    Attributes:
+        source: the input's path (with ``#window`` when inputs are split).
+        status: 'converted', 'failed' or 'already in dataset'.
+        error: why it failed ('' otherwise).
+        episode_index: its index in the dataset (-1 unless converted).
+        frames_in: source frames read.
+        frames_used: distinct source frames run through the engine.
+        frames_out: output frames at the dataset's fps.
+        skipped: reason -> dropped source frames.
+        warnings: reason -> frames kept despite a problem.
+        hands_valid: side -> output frames with a valid hand.
+        hands_invalid: side -> {reason -> output frames} for frames without a valid hand.
+        source_gaps: output frames farther than ``max_source_gap_s`` from any source frame.
+        max_source_gap_s: the largest distance of an output frame to its source frame.
+        metric_scale: the engine's final metric-scale estimate.
+        bundle_adjustment: the engine's BA statistics (None when BA is off).
+        seconds: wall time of the episode.
+
+    """
+
+    source: str
+    status: str = CONVERTED
+    error: str = ''
+    episode_index: int = -1
+    frames_in: int = 0
+    frames_used: int = 0
+    frames_out: int = 0
+    skipped: dict[str, int] = field(default_factory=dict)
+    warnings: dict[str, int] = field(default_factory=dict)
+    hands_valid: dict[str, int] = field(default_factory=dict)
+    hands_invalid: dict[str, dict[str, int]] = field(default_factory=dict)
+    source_gaps: int = 0
+    max_source_gap_s: float = 0.0
+    metric_scale: float = 1.0
+    bundle_adjustment: dict[str, Any] | None = None
+    seconds: float = 0.0
+
+    @property
+    def frames_per_s(self) -> float:
+        """Return output frames per wall second."""
+        return self.frames_out / self.seconds if self.seconds > 0 else 0.0
+
+    def to_dict(self) -> dict[str, Any]:
+        """Return the report as JSON-ready data."""
+        data = asdict(self)
+        data['frames_per_s'] = self.frames_per_s
+        return data
+
+    def lines(self) -> list[str]:
+        """Return the report as readable lines."""
+        if self.status != CONVERTED:
+            return [f'{self.source}: {self.status}' + (f' ({self.error})' if self.error else '')]
+        out = [f'{self.source}: episode {self.episode_index}, frames in {self.frames_in} / used '
+               f'{self.frames_used} / out {self.frames_out}, {self.frames_per_s:.1f} frames/s, '
+               f'metric scale {self.metric_scale:.4g}']
+        out.append('  valid hands: ' + ', '.join(f'{side} {count}'
+                                                 for side, count in self.hands_valid.items()))
+        for side, reasons in self.hands_invalid.items():
+            out += [f'  {side} hand invalid in {count} frames: {reason}'
+                    for reason, count in reasons.items()]
+        out += [f'  skipped {count} frames: {reason}' for reason, count in self.skipped.items()]
+        out += [f'  warning ({count} frames): {reason}' for reason, count in self.warnings.items()]
+        if self.source_gaps:
+            out.append(f'  {self.source_gaps} output frames are more than the allowed gap from '
+                       f'a source frame (largest {self.max_source_gap_s:.3f} s)')
+        if self.bundle_adjustment is not None:
+            ba = self.bundle_adjustment
+            out.append(f"  bundle adjustment: {ba.get('done', 0)} runs done, "
+                       f"{ba.get('failed', 0)} failed, {ba.get('dropped', 0)} dropped")
+        return out
+
+
+def summary_table(reports: list[EpisodeReport]) -> str:
+    """Return a fixed-width table of every episode and a totals line."""
+    header = f"{'status':<19} {'episode':>7} {'in':>7} {'out':>7} {'skip':>6} {'fps':>7}  source"
+    rows = [header, '-' * len(header)]
+    for report in reports:
+        episode = str(report.episode_index) if report.episode_index >= 0 else '-'
+        rows.append(f'{report.status:<19} {episode:>7} {report.frames_in:>7} '
+                    f'{report.frames_out:>7} {sum(report.skipped.values()):>6} '
+                    f'{report.frames_per_s:>7.1f}  {report.source}')
+    statuses = Counter(report.status for report in reports)
+    rows.append(', '.join(f'{count} {status}' for status, count in sorted(statuses.items()))
+                + f'; {sum(r.frames_out for r in reports if r.status == CONVERTED)} frames '
+                  'written')
+    return '\n'.join(rows)

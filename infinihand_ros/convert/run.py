@@ -1,0 +1,170 @@
+"""A conversion run: every input, episode by episode, into one dataset, past any bad input.
+
+Each input is read as a stream (bag or video), its frames are checked (``source_frames``),
+split into episodes (one per input, or per time window) and converted through one engine that
+is reset between episodes. An input that fails is reported with its path and the reason and the
+run goes on; an episode already in the dataset (same source) is skipped.
+"""
+
+from collections import Counter
+from collections.abc import Iterator
+from dataclasses import dataclass
+from dataclasses import replace
+import itertools
+import logging
+from pathlib import Path
+
+from infinihand_ros.ba.config import load_ba_config
+from infinihand_ros.bag.typestore import build_typestore
+from infinihand_ros.convert.bag_frames import read_bag_frames
+from infinihand_ros.convert.config import ConvertConfig
+from infinihand_ros.convert.dataset_writer import DatasetWriter
+from infinihand_ros.convert.episode import ConversionError
+from infinihand_ros.convert.episode import convert_episode
+from infinihand_ros.convert.frame_log import FrameLog
+from infinihand_ros.convert.inputs import InputSource
+from infinihand_ros.convert.inputs import VIDEO
+from infinihand_ros.convert.report import EpisodeReport
+from infinihand_ros.convert.report import FAILED
+from infinihand_ros.convert.report import SKIPPED
+from infinihand_ros.convert.source_frames import checked_frames
+from infinihand_ros.convert.source_frames import SourceFrame
+from infinihand_ros.convert.source_frames import split_windows
+from infinihand_ros.convert.video_frames import read_video_frames
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.engine.config import EngineConfig
+from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.streaming_engine import StreamingEngine
+from tqdm import tqdm
+
+logger = logging.getLogger(__name__)
+
+#: Sidecar files holding an input's task: ``<input>.task.txt`` beside it, or inside a bag folder.
+TASK_SUFFIX = '.task.txt'
+TASK_FILE = 'task.txt'
+
+
+@dataclass(frozen=True)
+class RunOptions:
+    """What a run converts besides the settings file.
+
+    Attributes:
+        output: the dataset directory.
+        image_topic: the bags' image topic, or None to auto-detect it per bag.
+        intrinsics: intrinsics of video inputs, or None (predicted).
+        progress: show progress bars.
+
+    """
+
+    output: Path
+    image_topic: str | None = None
+    intrinsics: Intrinsics | None = None
+    progress: bool = True
+
+
+def engine_config_for(config: ConvertConfig) -> EngineConfig:
+    """Return the engine settings of ``config.engine`` (mode and bundle adjustment applied)."""
+    choice = config.engine
+    base = load_engine_config(Path(choice.config).expanduser() if choice.config else None)
+    ba = (base.bundle_adjustment or load_ba_config()) if choice.bundle_adjustment else None
+    return replace(base, mode=choice.mode, bundle_adjustment=ba)
+
+
+def task_for(source: InputSource, config: ConvertConfig) -> str:
+    """Return the input's task: the configured one, else its sidecar file, else the default."""
+    if config.task:
+        return config.task
+    candidates = [source.path.with_name(source.path.name + TASK_SUFFIX)]
+    if source.path.is_dir():
+        candidates.append(source.path / TASK_FILE)
+    for candidate in candidates:
+        if candidate.is_file():
+            text = candidate.read_text(encoding='utf-8').strip()
+            if text:
+                return text
+    return config.default_task
+
+
+class ConversionRun:
+    """Converts inputs into the dataset of ``options.output``; collects the reports."""
+
+    def __init__(self, config: ConvertConfig, options: RunOptions,
+                 writer: DatasetWriter) -> None:
+        """Prepare a run (the engine is built when the first episode needs it)."""
+        self.config = config
+        self.options = options
+        self.writer = writer
+        self.reports: list[EpisodeReport] = []
+        self._engine: StreamingEngine | None = None
+        self._typestore = build_typestore() if config.estimates_bag else None
+        self._marks: tuple[int, Counter, Counter] = (0, Counter(), Counter())
+
+    def close(self) -> None:
+        """Stop the engine's workers."""
+        if self._engine is not None:
+            self._engine.close()
+
+    def _engine_instance(self) -> StreamingEngine:
+        if self._engine is None:
+            self._engine = StreamingEngine(engine_config_for(self.config))
+        return self._engine
+
+    def _frames(self, source: InputSource, log: FrameLog) -> Iterator[SourceFrame]:
+        if source.kind == VIDEO:
+            return read_video_frames(source.path, self.options.intrinsics, log)
+        return read_bag_frames(source.path, self.options.image_topic, log)
+
+    def convert(self, source: InputSource) -> None:
+        """Convert one input into one or more episodes; failures become reports."""
+        log = FrameLog()
+        self._marks = (0, Counter(), Counter())
+        windowed = self.config.episode_max_s is not None
+        seen = False
+        name = str(source.path)
+        try:
+            frames = checked_frames(self._frames(source, log), log)
+            groups = itertools.groupby(split_windows(frames, self.config.episode_max_s),
+                                       key=lambda pair: pair[0])
+            for window, pairs in groups:
+                seen = True
+                name = f'{source.path}#{window}' if windowed else str(source.path)
+                self._episode(source, name, (frame for _, frame in pairs), log)
+            if not seen:
+                raise ConversionError(_no_frame_message(log))
+        except (InfiniHandError, OSError) as exc:
+            self.reports.append(EpisodeReport(name, status=FAILED, error=str(exc)))
+            logger.error('%s: %s', name, exc)
+
+    def _episode(self, source: InputSource, name: str, frames: Iterator[SourceFrame],
+                 log: FrameLog) -> None:
+        """Convert (or skip) one episode of ``source``."""
+        if name in self.writer.finished_sources():
+            for _ in frames:
+                pass
+            self.reports.append(EpisodeReport(name, status=SKIPPED))
+            return
+        # Counts since the previous episode of this input ended (a window boundary frame read
+        # ahead by the grouping counts towards the earlier episode).
+        read, skipped, warned = self._marks
+        report = EpisodeReport(name)
+        with self.writer.staging() as work, tqdm(
+                desc=source.path.name, unit='frame', leave=False,
+                disable=not self.options.progress) as bar:
+            try:
+                episode = convert_episode(frames, self._engine_instance(), self.config, work,
+                                          report, self._typestore, bar.update)
+            finally:
+                report.frames_in = log.read - read
+                report.skipped = dict(log.skipped - skipped)
+                report.warnings = dict(log.warnings - warned)
+                self._marks = (log.read, Counter(log.skipped), Counter(log.warnings))
+            self.writer.add(episode, task_for(source, self.config))
+        self.reports.append(report)
+
+
+def _no_frame_message(log: FrameLog) -> str:
+    """Say why an input gave no frame: what was read and every reason frames were dropped."""
+    reasons = '; '.join(f'{count} x {reason}' for reason, count in log.skipped.items())
+    return (f'no usable frame ({log.read} image messages read'
+            + (f', skipped: {reasons})' if reasons else ')'))
