@@ -1,6 +1,9 @@
 """The one authority for camera poses: raw network poses, the metric scale and BA corrections.
 
-Per frame the track keeps the raw camera-to-world pose the network predicted (model units). The
+Per frame the track keeps the raw camera-to-world pose the network predicted (model units),
+re-anchored so that the world is exactly the first frame's camera (the project's convention and
+the paper's eq. 9): ``T_raw = T_net(0)^-1 T_net(t)``, so the first pose is the identity even
+when the camera head's prediction for the first anchor is not quite. The
 best pose of a frame is ``D(t) @ S(s) @ T_raw``: ``S(s)`` scales the translation by the
 trajectory's metric scale ``s`` (metres per model unit; one value for the whole track, so every
 frame is rescaled together, never frame by frame) and ``D(t)`` is the bundle-adjustment
@@ -24,6 +27,7 @@ from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.core.geometry import invert_transform
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.metric_scale import MetricScaleEstimator
 from infinihand_ros.engine.metric_scale import ScaleEstimate
@@ -100,6 +104,7 @@ class PoseTrack:
         self.estimator = MetricScaleEstimator(scale_config)
         self.corrections = CorrectionTrack(blend_s)
         self._entries: OrderedDict[int, _Entry] = OrderedDict()
+        self._world_from_network: np.ndarray | None = None  # T_net(0)^-1, set by the first add
         self._scale = scale_config.initial
         self._state = SCALE_STATES[0]
         self.version = 0
@@ -124,8 +129,11 @@ class PoseTrack:
         return self.estimator.estimate()
 
     def add(self, frame_index: int, timestamp_ns: int, T_raw: np.ndarray) -> None:
-        """Record a frame's raw camera-to-world pose (4, 4), model units."""
-        self._entries[frame_index] = _Entry(timestamp_ns, np.array(T_raw, dtype=np.float64))
+        """Record a frame's network camera-to-world pose (4, 4), model units (re-anchored)."""
+        T_network = np.array(T_raw, dtype=np.float64)
+        if self._world_from_network is None:
+            self._world_from_network = invert_transform(T_network)
+        self._entries[frame_index] = _Entry(timestamp_ns, self._world_from_network @ T_network)
         while len(self._entries) > self.config.capacity:
             self._entries.popitem(last=False)
 

@@ -1,11 +1,14 @@
 """Tests of engine/pose_track.py: one scale for the whole track, smooth refinements, versions."""
 
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.core.geometry import invert_transform
+from infinihand_ros.core.geometry import make_transform
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.pose_track import PoseTrack
 from infinihand_ros.engine.pose_track import PoseTrackConfig
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 SCALE = MetricScaleConfig(history=50, min_samples=3)
 
@@ -53,6 +56,22 @@ def test_later_refinements_are_bounded_per_frame_and_ignore_noise() -> None:
     assert np.all(steps <= 0.01 + 1e-12) and scales[-1] > 1.05
     changes = int(np.count_nonzero(np.diff([1.0] + scales)))
     assert changes >= 5 and track.version == version + changes
+
+
+def test_the_world_is_re_anchored_to_the_first_frame() -> None:
+    """Network poses G T_t (any G) give the track T_0^-1 T_t: first pose exactly the identity."""
+    rng = np.random.default_rng(3)
+    offset = make_transform(Rotation.from_rotvec(rng.normal(size=3)).as_matrix(),
+                            rng.normal(size=3))
+    poses = [make_transform(Rotation.from_rotvec(0.1 * rng.normal(size=3)).as_matrix(),
+                            rng.normal(size=3)) for _ in range(4)]
+    track = PoseTrack(PoseTrackConfig(), SCALE)
+    for index, pose in enumerate(poses):
+        track.add(index, index, offset @ pose)
+    np.testing.assert_allclose(track.best(0).camera_pose.matrix(), np.eye(4), atol=1e-12)
+    for index, pose in enumerate(poses):
+        np.testing.assert_allclose(track.best(index).camera_pose.matrix(),
+                                   invert_transform(poses[0]) @ pose, atol=1e-9)
 
 
 def test_track_memory_is_bounded() -> None:
