@@ -1,13 +1,15 @@
 """The estimator's ``/diagnostics`` status: level, message and key/value pairs (no ROS types).
 
 Level OK while images arrive and are published; WARN when no image came for a whole statistics
-window, when images are being dropped or refused in that time, or when bundle adjustment has
-failed (poses continue unrefined); STALE before the first image.
+window, when images are being dropped or refused in that time, when bundle adjustment has
+failed, or when the bundle-adjustment node is not there (never seen, or lost): poses continue
+unrefined then. STALE before the first image.
 """
 
 from dataclasses import dataclass
 import math
 
+from infinihand_ros.ros.ba_link import UNAVAILABLE
 from infinihand_ros.ros.estimator_statistics import OK
 from infinihand_ros.ros.estimator_statistics import STALE
 from infinihand_ros.ros.estimator_statistics import StatisticsSnapshot
@@ -29,6 +31,12 @@ def ba_state(engine_statistics: dict[str, object]) -> str:
     return 'off' if not isinstance(ba, dict) else str(ba.get('state', 'unknown'))
 
 
+def _ba_count(engine_statistics: dict[str, object], key: str) -> object:
+    """Return a BA counter of the statistics (0 without BA)."""
+    ba = engine_statistics.get('ba')
+    return ba.get(key, 0) if isinstance(ba, dict) else 0
+
+
 def _format(value: object) -> str:
     """Return a figure as diagnostics text (floats with 3 decimals, NaN as 'nan')."""
     if isinstance(value, float):
@@ -43,7 +51,8 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
 
     Args:
         snapshot: the node's figures now.
-        engine_statistics: ``StreamingEngine.statistics`` (metric scale, BA state).
+        engine_statistics: ``StreamingEngine.statistics`` (metric scale, BA state); with the
+            BA node, its ``ba`` entry is the ``BANodeLink`` statistics.
         window_s: the statistics window, seconds (no image for this long: WARN).
         previous: the figures of the last report, to tell new drops and bad frames.
 
@@ -58,7 +67,9 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         ('frames_dropped', snapshot.dropped), ('bad_frames', snapshot.bad),
         ('metric_scale', engine_statistics.get('metric_scale', float('nan'))),
         ('metric_scale_state', engine_statistics.get('metric_scale_state', 'unknown')),
-        ('pose_version', engine_statistics.get('pose_version', 0)), ('ba_state', state))
+        ('pose_version', engine_statistics.get('pose_version', 0)), ('ba_state', state),
+        ('ba_results_applied', _ba_count(engine_statistics, 'folded_in')),
+        ('ba_outages', _ba_count(engine_statistics, 'outages')))
     text = tuple((key, _format(value)) for key, value in values)
     if snapshot.received == 0:
         return DiagnosticReport(STALE, 'waiting for images', text)
@@ -72,6 +83,8 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         problems.append(f'{snapshot.bad - previous.bad} bad frame(s) skipped')
     if state == 'failed':
         problems.append('bundle adjustment failed: poses are unrefined')
+    if state in UNAVAILABLE:
+        problems.append(f'bundle-adjustment node {UNAVAILABLE[state]}: poses are unrefined')
     if problems:
         return DiagnosticReport(WARN, '; '.join(problems), text)
     return DiagnosticReport(OK, 'running', text)

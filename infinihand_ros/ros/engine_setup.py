@@ -19,7 +19,8 @@ def engine_config_for(selection: EngineSelection) -> EngineConfig:
     """Return the engine config the node's ``engine.*`` parameters describe.
 
     ``bundle_adjustment: in_process`` keeps the engine file's BA settings, or uses the
-    package's ``config/ba.yaml`` when that file has none.
+    package's ``config/ba.yaml`` when that file has none; ``none`` and ``node`` (BA in the
+    bundle_adjustment node, corrections applied by the node's pipeline) run no BA in the engine.
 
     Raises:
         ConfigError: naming the parameter (``engine.config``, ``engine.checkpoint``,

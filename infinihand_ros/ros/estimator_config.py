@@ -23,8 +23,8 @@ NODE_NAME: Final = 'infinihand_estimator'
 PARAMS_FILE: Final = 'estimator.yaml'
 ROS_PARAMETERS_KEY: Final = 'ros__parameters'
 CAMERA_MOTIONS: Final = ('estimate', 'static')
-SMOOTHING_MODES: Final = ('off', 'one_euro')
-BA_MODES: Final = ('off', 'in_process')
+SMOOTHING_MODES: Final = ('none', 'one_euro')  # not 'off': YAML reads a bare off as false
+BA_MODES: Final = ('none', 'in_process', 'node')
 
 
 def _require_choice(name: str, value: str, choices: tuple[str, ...]) -> None:
@@ -42,7 +42,7 @@ class EngineSelection:
     device: str = 'cpu'
     mode: str = 'per_frame'
     keyframe_interval: int = 1
-    bundle_adjustment: str = 'off'
+    bundle_adjustment: str = 'none'
 
     def __post_init__(self) -> None:
         _require_choice('engine.mode', self.mode, MODES)
@@ -126,7 +126,7 @@ class OutputSwitches:
 class SmoothingConfig:
     """One-Euro smoothing of the teleop outputs (parameters ``smoothing.*``)."""
 
-    mode: str = 'off'
+    mode: str = 'none'
     min_cutoff_hz: float = 1.0
     beta: float = 0.0
     d_cutoff_hz: float = 1.0
@@ -178,6 +178,22 @@ class DiagnosticsConfig:
 
 
 @dataclass(frozen=True)
+class BANodeLinkConfig:
+    """The link to the bundle-adjustment node (parameters ``ba_node.*``).
+
+    Attributes:
+        timeout_s: with ``engine.bundle_adjustment: node``, the BA node counts as lost (poses
+            unrefined, WARN in diagnostics) when its status has not come for this long, s.
+
+    """
+
+    timeout_s: float = 3.0
+
+    def __post_init__(self) -> None:
+        require_positive('ba_node', timeout_s=self.timeout_s)
+
+
+@dataclass(frozen=True)
 class EstimatorConfig:
     """Everything the estimator node is configured with (``config/estimator.yaml``)."""
 
@@ -189,6 +205,7 @@ class EstimatorConfig:
     identity: IdentityConfig = field(default_factory=IdentityConfig)
     shape: ShapeConfig = field(default_factory=ShapeConfig)
     diagnostics: DiagnosticsConfig = field(default_factory=DiagnosticsConfig)
+    ba_node: BANodeLinkConfig = field(default_factory=BANodeLinkConfig)
     bad_frame_log_period_s: float = 5.0
 
     def __post_init__(self) -> None:

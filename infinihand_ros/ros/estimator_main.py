@@ -8,6 +8,7 @@ parameter or checkpoint stops it at start-up with one error line naming it, exit
 import sys
 
 from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.ros.dds_profile import use_package_dds_profile
 from infinihand_ros.ros.estimator_node import EstimatorNode
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -19,6 +20,7 @@ EXIT_BAD_START = 1
 
 def main(args: list[str] | None = None) -> int:
     """Run the estimator node until shut down; return the exit code."""
+    use_package_dds_profile()
     rclpy.init(args=args)
     try:
         node = EstimatorNode()

@@ -6,7 +6,10 @@ put the message into a one-frame mailbox (``LatestFrameSlot``); a dedicated infe
 takes the newest one, so frames arriving while the model is busy are dropped and counted and the
 latency never grows. A bad frame (encoding, size, truncated data, bad CameraInfo) is logged,
 throttled, counted and skipped. Inputs (relative, remappable): ``image``, ``image/compressed``,
-``camera_info``, with sensor-data QoS overridable by parameters.
+``camera_info``, with sensor-data QoS overridable by parameters. With
+``engine.bundle_adjustment: node`` keyframes go to the bundle-adjustment node and its
+corrections are applied between frames (``BANodeClient``); without that node the poses go on
+unrefined and diagnostics say so.
 """
 
 from collections import OrderedDict
@@ -20,6 +23,7 @@ from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.ros import msg_builders
+from infinihand_ros.ros.ba_node_client import BANodeClient
 from infinihand_ros.ros.camera_info_pairing import CameraInfoPairing
 from infinihand_ros.ros.camera_info_pairing import IntrinsicsChoice
 from infinihand_ros.ros.diagnostics_report import diagnostic_report
@@ -74,6 +78,8 @@ class EstimatorNode(Node):
         self.outputs = OutputPublishers(self, self.config.outputs,
                                         self.config.frames.world_frame_id)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
+        self._ba_node = (BANodeClient(self, self.config.ba_node, self.config.frames.world_frame_id)
+                         if self.config.engine.bundle_adjustment == 'node' else None)
         overrides = QoSOverridingOptions.with_default_policies()
         for msg_type, topic in ((Image, 'image'), (CompressedImage, 'image/compressed')):
             self.create_subscription(msg_type, topic, self._on_image, qos_profile_sensor_data,
@@ -86,7 +92,8 @@ class EstimatorNode(Node):
         self._worker.start()
         self.get_logger().info(
             f'ready: engine {engine.config.mode} on {engine.config.device}, camera motion '
-            f'{self.config.camera.motion}, smoothing {self.config.smoothing.mode}')
+            f'{self.config.camera.motion}, smoothing {self.config.smoothing.mode}, bundle '
+            f'adjustment {self.config.engine.bundle_adjustment}')
 
     def close(self) -> None:
         """Stop the inference thread and close the engine (call before ``destroy_node``)."""
@@ -124,8 +131,14 @@ class EstimatorNode(Node):
         """Take the newest image, run it through the pipeline, publish; until closed."""
         while not self._slot.closed:
             item = self._slot.take(TAKE_TIMEOUT_S)
-            if item is not None:
+            if item is None:
+                continue
+            try:
                 self._process(*item)
+            except RuntimeError:  # rclpy's RCLError: SIGINT invalidated the context mid-publish
+                if self.context.ok():
+                    raise
+                return
 
     def _process(self, msg: Image | CompressedImage, arrival_ns: int) -> None:
         """Decode, pair with intrinsics, run the pipeline and publish one image."""
@@ -133,6 +146,7 @@ class EstimatorNode(Node):
         self._arrivals[stamp_ns] = arrival_ns
         while len(self._arrivals) > ARRIVALS_KEPT:
             self._arrivals.popitem(last=False)
+        self._apply_corrections()
         try:
             rgb = decode_image(msg)
             choice = self._intrinsics_for(stamp_ns, rgb.shape[1], rgb.shape[0])
@@ -156,6 +170,18 @@ class EstimatorNode(Node):
             arrival = self._arrivals.get(output.stamp_ns, now)
             self.statistics.frame_published(now / NS_PER_S, (now - output.stamp_ns) / NS_PER_S,
                                             (now - arrival) / NS_PER_S)
+            if self._ba_node is not None and output.keyframe is not None:
+                self._ba_node.publish(output.keyframe, camera_frame)
+
+    def _apply_corrections(self) -> None:
+        """Apply the BA node's corrections received since the last frame."""
+        if self._ba_node is None:
+            return
+        for corrections in self._ba_node.take_corrections():
+            self.pipeline.apply_corrections(corrections.times_ns, corrections.corrections)
+            self._ba_node.link.applied()
+            self.get_logger().info(f'applied bundle-adjustment corrections of '
+                                   f'{len(corrections.times_ns)} keyframes')
 
     def _intrinsics_for(self, stamp_ns: int, width: int, height: int) -> IntrinsicsChoice:
         """Pair an image with its CameraInfo, waiting a little for one that comes just after.
@@ -175,7 +201,11 @@ class EstimatorNode(Node):
         """Publish the node's figures on /diagnostics."""
         now = self._now_ns()
         snapshot = self.statistics.snapshot(now / NS_PER_S)
-        report = diagnostic_report(snapshot, self._engine_statistics,
+        engine_statistics = self._engine_statistics
+        if self._ba_node is not None:
+            self._ba_node.check()
+            engine_statistics = {**engine_statistics, 'ba': self._ba_node.statistics()}
+        report = diagnostic_report(snapshot, engine_statistics,
                                    self.config.diagnostics.window_s, self._previous)
         self._previous = snapshot
         self._diagnostics.publish(msg_builders.diagnostic_array_msg(

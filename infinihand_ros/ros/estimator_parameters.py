@@ -37,8 +37,9 @@ PARAMETER_SPECS: Final = {
     'engine.mode': ParameterSpec('per_frame (lowest latency) or windowed (throughput).'),
     'engine.keyframe_interval': ParameterSpec('After the anchors, every n-th frame enters the '
                                               'streaming memory.', 1, _BIG_INT),
-    'engine.bundle_adjustment': ParameterSpec("off, or in_process (the engine's background "
-                                              'bundle-adjustment worker).'),
+    'engine.bundle_adjustment': ParameterSpec("off, in_process (the engine's background "
+                                              'bundle-adjustment worker) or node (the '
+                                              'bundle_adjustment node refines keyframes).'),
     'frames.world_frame_id': ParameterSpec('Frame id of every world-frame output.'),
     'frames.camera_frame_id': ParameterSpec('Camera (optical) frame id; empty: the image '
                                             "header's frame id."),
@@ -83,6 +84,9 @@ PARAMETER_SPECS: Final = {
     'diagnostics.period_s': ParameterSpec('/diagnostics publishing period, s.', 1e-3, 3600.0),
     'diagnostics.window_s': ParameterSpec('Rates and latency percentiles cover this much recent '
                                           'time, s.', 1e-3, 3600.0),
+    'ba_node.timeout_s': ParameterSpec('With engine.bundle_adjustment node: the BA node counts '
+                                       'as lost when its status has not come for this long, s.',
+                                       1e-3, 3600.0),
     'bad_frame_log_period_s': ParameterSpec('Throttle of the bad-frame warning, s.', 1e-3,
                                             3600.0),
 }

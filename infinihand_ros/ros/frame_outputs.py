@@ -14,6 +14,7 @@ first camera's, or the fixed camera's with ``camera.motion: static``). Per hand:
 
 from dataclasses import dataclass
 
+from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.core import geometry
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import FrameResult
@@ -77,6 +78,7 @@ class FrameOutput:
         hands: per side (index 0 left, 1 right) the hand output, or None when not seen.
         metric_scale: metres per model unit applied to the trajectory.
         pose_version: the engine pose-track version ``camera_pose`` was computed with.
+        keyframe: what goes to the bundle-adjustment node for this frame (None: nothing).
 
     """
 
@@ -87,6 +89,7 @@ class FrameOutput:
     hands: tuple[HandOutput | None, HandOutput | None]
     metric_scale: float
     pose_version: int
+    keyframe: KeyframeInput | None = None
 
 
 def hand_output(hand: HandState) -> HandOutput | None:

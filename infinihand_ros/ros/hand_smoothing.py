@@ -2,7 +2,7 @@
 
 The wrist pose and the wrist-frame landmarks are derived from the smoothed joints, so every
 hand output stays consistent. A side's filter restarts when its hand is not seen in a frame (no
-smoothing across a gap, nothing stale). With ``mode: off`` the hands pass unchanged.
+smoothing across a gap, nothing stale). With ``mode: none`` the hands pass unchanged.
 """
 
 from dataclasses import replace
@@ -19,7 +19,7 @@ class HandSmoother:
     """One One-Euro filter per side (not thread-safe)."""
 
     def __init__(self, config: SmoothingConfig) -> None:
-        """Build the filters of ``config`` (none when ``mode`` is 'off')."""
+        """Build the filters of ``config`` (none when ``mode`` is 'none')."""
         self.enabled = config.mode == 'one_euro'
         self._filters = {side: OneEuroFilter(config.min_cutoff_hz, config.beta,
                                              config.d_cutoff_hz) for side in SIDES}

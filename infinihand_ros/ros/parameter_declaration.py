@@ -1,7 +1,8 @@
-"""Declaring the estimator's parameters on an rclpy node, with descriptions, types and ranges.
+"""Declaring a node's parameters on rclpy, with descriptions, types and ranges.
 
-Defaults come from ``config/estimator.yaml``; descriptions and ranges from
-``estimator_parameters.PARAMETER_SPECS``. rclpy checks the types and ranges of overrides (a
+``declare_parameters`` serves both nodes: defaults from their YAML file
+(``config/estimator.yaml``, ``config/bundle_adjustment.yaml``), descriptions and ranges from
+their ``ParameterSpec`` tables. rclpy checks the types and ranges of overrides (a
 params file or ``-p``) while declaring; its exceptions are turned into ``ConfigError`` naming
 the parameter, and the config tree then checks the choices.
 """
@@ -36,6 +37,35 @@ def descriptor_for(name: str, spec: ParameterSpec, default: Any) -> ParameterDes
     return descriptor
 
 
+def declare_parameters(node: Node, defaults: dict[str, Any],
+                       specs: dict[str, ParameterSpec], source: str) -> dict[str, Any]:
+    """Declare every parameter of ``defaults`` on ``node``; return the values it got.
+
+    Args:
+        node: the node to declare on.
+        defaults: flat (dotted) parameter names and their default values.
+        specs: description and range of every parameter (the same names).
+        source: the defaults file, named when it does not match the specs.
+
+    Raises:
+        ConfigError: naming the parameter for a wrong type or an out-of-range value, or when
+            the defaults and the specs name different parameters.
+
+    """
+    if set(defaults) != set(specs):
+        raise ConfigError(f'{source} and the parameter specs differ: '
+                          f'{sorted(set(defaults) ^ set(specs))}')
+    values: dict[str, Any] = {}
+    for name, default in defaults.items():
+        try:
+            parameter = node.declare_parameter(name, default,
+                                               descriptor_for(name, specs[name], default))
+        except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
+            raise ConfigError(f'parameter {name}: {exc}') from exc
+        values[name] = parameter.value
+    return values
+
+
 def declare_estimator_parameters(node: Node) -> EstimatorConfig:
     """Declare every parameter on ``node`` and return the checked config.
 
@@ -44,18 +74,8 @@ def declare_estimator_parameters(node: Node) -> EstimatorConfig:
             defaults file that does not match the specs.
 
     """
-    defaults = load_estimator_defaults()
-    if set(defaults) != set(PARAMETER_SPECS):
-        raise ConfigError(f'config/estimator.yaml and the parameter specs differ: '
-                          f'{sorted(set(defaults) ^ set(PARAMETER_SPECS))}')
-    values: dict[str, Any] = {}
-    for name, default in defaults.items():
-        try:
-            parameter = node.declare_parameter(
-                name, default, descriptor_for(name, PARAMETER_SPECS[name], default))
-        except (InvalidParameterTypeException, InvalidParameterValueException) as exc:
-            raise ConfigError(f'parameter {name}: {exc}') from exc
-        values[name] = parameter.value
+    values = declare_parameters(node, load_estimator_defaults(), PARAMETER_SPECS,
+                                'config/estimator.yaml')
     try:
         return estimator_config_from_parameters(values)
     except ConfigError as exc:

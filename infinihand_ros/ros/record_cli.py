@@ -16,6 +16,7 @@ import time
 from typing import Any, Final
 
 from infinihand_ros.bag.typestore import build_typestore
+from infinihand_ros.ros.dds_profile import use_package_dds_profile
 from infinihand_ros.ros.replay_cli import message_class
 import rclpy
 from rclpy.executors import ExternalShutdownException
@@ -121,8 +122,9 @@ def record(options: RecordOptions) -> dict[str, int]:
     executor.add_node(node)
     writer = Writer(options.output, version=ROSBAG_VERSION, storage_plugin=StoragePlugin.MCAP)
     writer.open()
-    recorder = Recorder(node, writer, options.topics)
+    counts = dict.fromkeys(options.topics, 0)
     try:
+        counts = Recorder(node, writer, options.topics).counts
         end = time.monotonic() + options.duration_s if options.duration_s else None
         while rclpy.ok() and (end is None or time.monotonic() < end):
             executor.spin_once(timeout_sec=DISCOVERY_PERIOD_S)
@@ -132,16 +134,20 @@ def record(options: RecordOptions) -> dict[str, int]:
         writer.close()
         executor.shutdown()
         node.destroy_node()
-    return recorder.counts
+    return counts
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``record``; return the exit code."""
     args = rclpy.utilities.remove_ros_args(sys.argv if argv is None else ['record', *argv])
     options = parse_args(args[1:])
+    use_package_dds_profile()
     rclpy.init(args=sys.argv if argv is None else None)
     try:
         counts = record(options)
+    except KeyboardInterrupt:  # SIGINT while the node was still being created
+        print('record: interrupted before recording started', file=sys.stderr)
+        return EXIT_OK
     finally:
         rclpy.try_shutdown()
     summary = ', '.join(f'{topic} {count}' for topic, count in counts.items())

@@ -20,6 +20,7 @@ from typing import Any, Final
 
 from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.core.errors import BagError
+from infinihand_ros.ros.dds_profile import use_package_dds_profile
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
@@ -160,6 +161,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``replay``; return the exit code."""
     args = rclpy.utilities.remove_ros_args(sys.argv if argv is None else ['replay', *argv])
     options = parse_args(args[1:])
+    use_package_dds_profile()
     rclpy.init(args=sys.argv if argv is None else None)
     try:
         total = replay(options)

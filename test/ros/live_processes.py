@@ -71,3 +71,16 @@ def wait_for_text(log: Path, text: str, process: subprocess.Popen, timeout_s: fl
             return False
         time.sleep(0.2)
     return False
+
+
+def wait_for_count(log: Path, text: str, count: int, process: subprocess.Popen,
+                   timeout_s: float) -> bool:
+    """Wait until ``text`` appears ``count`` times in ``log`` (False on timeout or exit)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if log.read_text(errors='replace').count(text) >= count:
+            return True
+        if process.poll() is not None:
+            return False
+        time.sleep(0.2)
+    return False

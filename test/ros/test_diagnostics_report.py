@@ -43,3 +43,17 @@ def test_ba_state() -> None:
     """The BA state comes from the engine statistics."""
     assert ba_state({'ba': {'state': 'running'}}) == 'running'
     assert ba_state({'ba': None}) == 'off'
+
+
+def test_an_absent_or_lost_ba_node_warns_and_counts_show() -> None:
+    """Node link 'waiting' or 'lost': WARN saying poses are unrefined; counters as values."""
+    for state, text in (('waiting', 'not seen yet'), ('lost', 'lost')):
+        ba = {'state': state, 'folded_in': 3, 'outages': 1}
+        report = diagnostic_report(RUNNING, {**ENGINE, 'ba': ba}, 5.0, RUNNING)
+        assert report.level == WARN
+        assert f'bundle-adjustment node {text}: poses are unrefined' in report.message
+        values = dict(report.values)
+        assert values['ba_state'] == state and values['ba_results_applied'] == '3'
+        assert values['ba_outages'] == '1'
+    connected = {'state': 'connected', 'folded_in': 4, 'outages': 1}
+    assert diagnostic_report(RUNNING, {**ENGINE, 'ba': connected}, 5.0, RUNNING).level == OK

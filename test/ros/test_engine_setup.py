@@ -34,3 +34,9 @@ def test_bad_engine_parameters_are_named(selection: EngineSelection, match: str)
     """Missing paths and unusable devices raise ConfigError naming the parameter."""
     with pytest.raises(ConfigError, match=match):
         engine_config_for(selection)
+
+
+def test_node_bundle_adjustment_runs_no_ba_in_the_engine() -> None:
+    """With the BA node the engine's own BA worker stays off."""
+    config = engine_config_for(EngineSelection(bundle_adjustment='node'))
+    assert config.bundle_adjustment is None

@@ -33,8 +33,10 @@ class StubEngine:
         self.model = SimpleNamespace(hand_branch=SimpleNamespace(
             hand_models=[BuiltinHandModel(LEFT), BuiltinHandModel(RIGHT)]))
         self.pose_track = SimpleNamespace(best=self._best)
+        self.live_reads: list[bool] = []
 
-    def _best(self, frame_index: int) -> TrackedPose:
+    def _best(self, frame_index: int, live: bool = True) -> TrackedPose:
+        self.live_reads.append(live)
         if frame_index != 0:
             raise KeyError(frame_index)
         moved = CameraPose(np.eye(3), np.array([9.0, 0.0, 0.0]))
@@ -70,6 +72,7 @@ def test_outputs_keep_stamps_identity_and_path() -> None:
     assert [o.stamp_ns for o in out] == [0, 33 * MS]
     assert out[1].hands[RIGHT] is None and out[1].hands[LEFT] is not None
     assert [p.position[0] for _, p in runner.path.poses()] == [9.0, 1.0]
+    assert engine.live_reads == [False]  # a refresh leaves the live correction blend alone
     assert engine.pushed[1][1] == 33 * MS
     runner.close()
     assert engine.closed

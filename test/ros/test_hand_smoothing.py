@@ -14,8 +14,8 @@ S = 1_000_000_000
 HALF = 1.0 / (2.0 * math.pi)  # alpha 0.5 at dt = 1 s
 
 
-def test_off_passes_hands_unchanged() -> None:
-    """Mode off returns the very same hands."""
+def test_none_passes_hands_unchanged() -> None:
+    """Mode none returns the very same hands."""
     hands = (make_hand(LEFT),)
     assert HandSmoother(SmoothingConfig()).apply(hands, 0) is hands
 

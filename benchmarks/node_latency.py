@@ -1,0 +1,237 @@
+"""Live estimator figures: output rate, latency and drops with the sample bag replayed at 10/30 Hz.
+
+    python benchmarks/node_latency.py [--rates 10 30] [--ba none node] [--seconds S] [--json]
+
+Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
+``source scripts/env.sh``. For each input rate and BA setting it starts the installed
+``estimator`` (with ``engine.bundle_adjustment`` none, or ``node`` plus the installed
+``bundle_adjustment`` node) on a private DDS domain, replays the first ``--seconds`` of the
+sample bag (10 FPS; ``replay --rate r/10``) and listens in this process to the replayed images
+and to ``~/camera_pose``.
+
+Latency is measured as receive time minus the replay's publish time, on this machine's
+monotonic clock: the time this process receives an output minus the time it received the image
+with the same stamp (shared-memory transport: the image arrives here within a fraction of a
+millisecond of its publication). No ``/clock`` is involved. Printed per run: output rate (Hz,
+outputs over the span from first to last output), latency p50/p95 (ms), and drops: images the
+node received but replaced before inference (``frames_dropped`` of its last /diagnostics), and
+images of the segment that never reached the node (``not_received``). With the BA node, the
+BA results the estimator applied. Figures only; nothing is asserted.
+"""
+
+import argparse
+from dataclasses import asdict
+from dataclasses import dataclass
+import json
+import os
+from pathlib import Path
+import signal
+import subprocess
+import tempfile
+import threading
+import time
+
+from diagnostic_msgs.msg import DiagnosticArray
+from geometry_msgs.msg import PoseStamped
+from infinihand_ros.bag.messages import ns_from_stamp
+from infinihand_ros.bag.typestore import build_typestore
+from infinihand_ros.ros.dds_profile import use_package_dds_profile
+import numpy as np
+import rclpy
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.qos import qos_profile_sensor_data
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import StoragePlugin
+from rosbags.rosbag2 import Writer
+from sensor_msgs.msg import CompressedImage
+
+ROOT = Path(__file__).resolve().parents[1]
+LIB = ROOT / 'install' / 'infinihand_ros' / 'lib' / 'infinihand_ros'
+SAMPLE_BAG = ROOT / 'data' / 'sample_bag'
+BAG_FPS = 10.0
+IMAGE_TOPIC = '/camera/image_raw/compressed'
+INFO_TOPIC = '/camera/camera_info'
+POSE_TOPIC = '/infinihand_estimator/camera_pose'
+REMAPS = ['-r', f'image/compressed:={IMAGE_TOPIC}', '-r', f'camera_info:={INFO_TOPIC}']
+READY = 'ready:'
+SETTLE_S = 3.0
+NS_PER_S = 1e9
+MS_PER_S = 1e3
+
+
+@dataclass(frozen=True)
+class RunFigures:
+    """What one run measured."""
+
+    rate_hz: float
+    bundle_adjustment: str
+    images: int
+    outputs: int
+    output_rate_hz: float
+    latency_p50_ms: float
+    latency_p95_ms: float
+    frames_received: int
+    frames_dropped: int
+    not_received: int
+    ba_results_applied: int
+
+
+def parse_args() -> argparse.Namespace:
+    """Parse and check the arguments; exit 2 with one line naming a bad one."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--rates', type=float, nargs='+', default=[10.0, 30.0],
+                        help='input rates, Hz (the bag is 10 FPS)')
+    parser.add_argument('--ba', nargs='+', default=['none', 'node'], choices=['none', 'node'],
+                        help='bundle adjustment: none, or the BA node')
+    parser.add_argument('--seconds', type=float, default=0.0,
+                        help='replay only the first S seconds of the bag (0: all of it)')
+    parser.add_argument('--json', action='store_true', help='print one JSON line per run')
+    args = parser.parse_args()
+    if any(rate <= 0 for rate in args.rates):
+        parser.error(f'--rates must be > 0, got {args.rates}')
+    if args.seconds < 0:
+        parser.error(f'--seconds must be >= 0, got {args.seconds}')
+    if not (LIB / 'estimator').exists():
+        parser.error(f'{LIB / "estimator"} is missing; build with colcon (make build)')
+    return args
+
+
+def write_segment(seconds: float, out: Path) -> int:
+    """Copy the camera topics of the bag's first ``seconds`` (0: all) to ``out``; return images."""
+    images = 0
+    with AnyReader([SAMPLE_BAG], default_typestore=build_typestore()) as reader, \
+            Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = [c for c in reader.connections if c.topic in (IMAGE_TOPIC, INFO_TOPIC)]
+        added = {c.topic: writer.add_connection(c.topic, c.msgtype, typestore=reader.typestore)
+                 for c in connections}
+        end = reader.start_time + int(seconds * NS_PER_S) if seconds else None
+        for connection, log_time, raw in reader.messages(connections=connections):
+            if end is not None and log_time >= end:
+                break
+            writer.write(added[connection.topic], log_time, raw)
+            images += int(connection.topic == IMAGE_TOPIC)
+    return images
+
+
+class Listener:
+    """Receive times (monotonic ns) of replayed images and estimator outputs, by stamp."""
+
+    def __init__(self) -> None:
+        """Subscribe to the images, the camera poses and /diagnostics."""
+        self.node = rclpy.create_node('node_latency_benchmark')
+        self.inputs: dict[int, int] = {}
+        self.outputs: dict[int, int] = {}
+        self.diagnostics: dict[str, str] = {}
+        self.node.create_subscription(CompressedImage, IMAGE_TOPIC,
+                                      lambda m: self._stamp(self.inputs, m),
+                                      qos_profile_sensor_data)
+        self.node.create_subscription(PoseStamped, POSE_TOPIC,
+                                      lambda m: self._stamp(self.outputs, m), 10)
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._diagnostic, 10)
+        self._executor = SingleThreadedExecutor()
+        self._executor.add_node(self.node)
+        self._thread = threading.Thread(target=self._executor.spin, daemon=True)
+        self._thread.start()
+
+    def _stamp(self, into: dict[int, int], msg: object) -> None:
+        into.setdefault(ns_from_stamp(msg.header.stamp), time.monotonic_ns())
+
+    def _diagnostic(self, msg: object) -> None:
+        for status in msg.status:
+            if status.name.endswith(': estimator'):
+                self.diagnostics = {kv.key: kv.value for kv in status.values}
+
+    def close(self) -> None:
+        """Stop listening."""
+        self._executor.shutdown()
+        self.node.destroy_node()
+
+
+def start(executable: str, args: list[str], log: Path) -> subprocess.Popen:
+    """Start an installed executable with its output to ``log``."""
+    with open(log, 'wb') as out:
+        return subprocess.Popen([str(LIB / executable), *args], stdout=out,
+                                stderr=subprocess.STDOUT)
+
+
+def wait_ready(process: subprocess.Popen, log: Path, timeout_s: float = 180.0) -> None:
+    """Wait for a node's ready line; raise RuntimeError with its log if it ends first."""
+    deadline = time.monotonic() + timeout_s
+    while READY not in log.read_text(errors='replace'):
+        if process.poll() is not None or time.monotonic() > deadline:
+            raise RuntimeError(f'{log.name}: not ready\n{log.read_text(errors="replace")}')
+        time.sleep(0.2)
+
+
+def stop(process: subprocess.Popen) -> None:
+    """SIGINT a process and wait for it."""
+    process.send_signal(signal.SIGINT)
+    process.wait(60)
+
+
+def figures(rate_hz: float, ba: str, images: int, listener: Listener) -> RunFigures:
+    """Compute one run's figures from what the listener received."""
+    pairs = [(listener.outputs[s] - listener.inputs[s]) / NS_PER_S * MS_PER_S
+             for s in listener.outputs if s in listener.inputs]
+    p50, p95 = np.percentile(pairs, [50.0, 95.0]) if pairs else (float('nan'),) * 2
+    times = sorted(listener.outputs.values())
+    span_s = (times[-1] - times[0]) / NS_PER_S if len(times) > 1 else 0.0
+    values = listener.diagnostics
+    received = int(values.get('frames_received', 0))
+    return RunFigures(rate_hz, ba, images, len(times),
+                      (len(times) - 1) / span_s if span_s else 0.0, float(p50), float(p95),
+                      received, int(values.get('frames_dropped', 0)), images - received,
+                      int(values.get('ba_results_applied', 0)))
+
+
+def run_once(rate_hz: float, ba: str, segment: Path, images: int, work: Path) -> RunFigures:
+    """Start the nodes, replay the segment at ``rate_hz``, return the figures."""
+    # Quoted so the value stays a string whatever it is.
+    params = ['--ros-args', '-p', f"engine.bundle_adjustment:='{ba}'", *REMAPS]
+    estimator = start('estimator', params, work / f'estimator_{ba}_{rate_hz:g}.log')
+    helpers = []
+    try:
+        wait_ready(estimator, work / f'estimator_{ba}_{rate_hz:g}.log')
+        if ba == 'node':
+            helpers.append(start('bundle_adjustment', [], work / f'ba_{rate_hz:g}.log'))
+            wait_ready(helpers[0], work / f'ba_{rate_hz:g}.log')
+        listener = Listener()
+        replay = start('replay', [str(segment), '--rate', f'{rate_hz / BAG_FPS:g}',
+                                  '--wait-for-subscribers', '20'], work / 'replay.log')
+        replay.wait()
+        time.sleep(SETTLE_S)  # the last inference and a diagnostics period
+        listener.close()
+        return figures(rate_hz, ba, images, listener)
+    finally:
+        for process in [estimator, *helpers]:
+            stop(process)
+
+
+def main() -> None:
+    """Run every rate and BA setting; print the figures."""
+    args = parse_args()
+    # A private graph for this run; the nodes started inherit it.
+    os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 100)
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    use_package_dds_profile()
+    rclpy.init()
+    try:
+        with tempfile.TemporaryDirectory(prefix='node_latency_') as tmp:
+            work = Path(tmp)
+            images = write_segment(args.seconds, work / 'segment')
+            for ba in args.ba:
+                for rate in args.rates:
+                    result = run_once(rate, ba, work / 'segment', images, work)
+                    print(json.dumps(asdict(result)) if args.json else
+                          f'{rate:5.1f} Hz in, BA {ba:4s}: {result.outputs}/{images} frames '
+                          f'out at {result.output_rate_hz:.1f} Hz, latency p50 '
+                          f'{result.latency_p50_ms:.0f} ms p95 {result.latency_p95_ms:.0f} ms, '
+                          f'dropped {result.frames_dropped}, not received '
+                          f'{result.not_received}, BA results {result.ba_results_applied}',
+                          flush=True)
+    finally:
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,101 @@
+"""The estimator's side of ``engine.bundle_adjustment: node``: keyframes out, corrections in.
+
+Keyframes are published (``keyframe_msgs``) only while the BA node subscribes to every part, so
+an absent node costs nothing. Corrections arrive in a callback and wait in a queue until the
+inference thread, between two frames, takes them into the pipeline (the engine serves one
+caller). The BA node's status messages are the heartbeat of a ``BANodeLink``; its state
+changes are logged once each and reported in diagnostics. Wall time (monotonic) measures the
+heartbeat, so a replay's ``/clock`` pausing cannot hide an outage.
+"""
+
+import queue
+import time
+from typing import Final
+
+from diagnostic_msgs.msg import DiagnosticArray
+from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.ros.ba_link import BANodeLink
+from infinihand_ros.ros.ba_link import UNAVAILABLE
+from infinihand_ros.ros.estimator_config import BANodeLinkConfig
+from infinihand_ros.ros.keyframe_msgs import Corrections
+from infinihand_ros.ros.keyframe_msgs import corrections_from_msg
+from infinihand_ros.ros.keyframe_msgs import CORRECTIONS_TOPIC
+from infinihand_ros.ros.keyframe_msgs import keyframe_msgs
+from infinihand_ros.ros.keyframe_msgs import KEYFRAME_PARTS
+from infinihand_ros.ros.keyframe_msgs import KEYFRAME_PREFIX
+from infinihand_ros.ros.keyframe_msgs import LINK_QOS
+from infinihand_ros.ros.keyframe_msgs import STATE_KEY
+from infinihand_ros.ros.keyframe_msgs import STATUS_TOPIC
+from nav_msgs.msg import Path
+from rclpy.node import Node
+
+#: Keyframe stamps remembered to check corrections against (more than a BA pool holds).
+STAMPS_KEPT: Final = 4096
+LOG_PERIOD_S: Final = 5.0
+
+
+class BANodeClient:
+    """Keyframe publishers, the corrections queue and the link to the BA node."""
+
+    def __init__(self, node: Node, config: BANodeLinkConfig, world_frame_id: str) -> None:
+        """Create the keyframe publishers and subscribe to the BA node's outputs."""
+        self._node = node
+        self._world = world_frame_id
+        self.link = BANodeLink(config.timeout_s, STAMPS_KEPT)
+        self._corrections: queue.SimpleQueue[Corrections] = queue.SimpleQueue()
+        self._publishers = {part: node.create_publisher(msg_type, KEYFRAME_PREFIX + part,
+                                                        LINK_QOS)
+                            for part, msg_type in KEYFRAME_PARTS.items()}
+        node.create_subscription(Path, CORRECTIONS_TOPIC, self._on_corrections, LINK_QOS)
+        node.create_subscription(DiagnosticArray, STATUS_TOPIC, self._on_status, LINK_QOS)
+
+    def publish(self, keyframe: KeyframeInput, camera_frame_id: str) -> bool:
+        """Send a keyframe when the BA node listens to every part; return whether it went."""
+        if not all(publisher.get_subscription_count() for publisher in
+                   self._publishers.values()):
+            return False
+        for part, msg in keyframe_msgs(keyframe, self._world, camera_frame_id).items():
+            self._publishers[part].publish(msg)
+        self.link.sent(keyframe.timestamp_ns)
+        return True
+
+    def take_corrections(self) -> list[Corrections]:
+        """Return the corrections received since the last call, oldest first."""
+        taken = []
+        while not self._corrections.empty():
+            taken.append(self._corrections.get_nowait())
+        return taken
+
+    def check(self) -> None:
+        """Log a change of the link's state (once per change)."""
+        state = self.link.changed(time.monotonic())
+        if state in UNAVAILABLE:
+            self._node.get_logger().warning(f'bundle-adjustment node {UNAVAILABLE[state]}: '
+                                            'poses go on unrefined')
+        elif state is not None:
+            self._node.get_logger().info(f'bundle-adjustment node {state}')
+
+    def statistics(self) -> dict[str, object]:
+        """Return the link's figures for diagnostics."""
+        return self.link.statistics(time.monotonic())
+
+    def _on_corrections(self, msg: Path) -> None:
+        """Queue a BA result for the keyframes this estimator sent; refuse others."""
+        try:
+            corrections = corrections_from_msg(msg)
+        except InputError as exc:
+            self._node.get_logger().warning(f'ignoring BA corrections: {exc}',
+                                            throttle_duration_sec=LOG_PERIOD_S)
+            return
+        if not self.link.accepts(corrections.times_ns):
+            self._node.get_logger().warning(
+                'ignoring BA corrections of keyframes this estimator did not send (an earlier '
+                'stream)', throttle_duration_sec=LOG_PERIOD_S)
+            return
+        self._corrections.put(corrections)
+
+    def _on_status(self, msg: DiagnosticArray) -> None:
+        """Take a BA node status as its heartbeat."""
+        values = {kv.key: kv.value for status in msg.status for kv in status.values}
+        self.link.heard(time.monotonic(), values.get(STATE_KEY, 'unknown'))

@@ -1,0 +1,43 @@
+"""The BA node's parameters and BA settings (ros/bundle_adjustment_config.py)."""
+
+from pathlib import Path
+
+from infinihand_ros.ba.config import load_ba_config
+from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.ros.bundle_adjustment_config import ba_node_config_from_parameters
+from infinihand_ros.ros.bundle_adjustment_config import BA_NODE_PARAMETER_SPECS
+from infinihand_ros.ros.bundle_adjustment_config import BundleAdjustmentNodeConfig
+from infinihand_ros.ros.bundle_adjustment_config import load_ba_node_defaults
+import pytest
+
+
+def test_defaults_file_matches_the_specs_and_the_dataclass() -> None:
+    """config/bundle_adjustment.yaml gives every spec'd parameter, the dataclass defaults."""
+    defaults = load_ba_node_defaults()
+    assert set(defaults) == set(BA_NODE_PARAMETER_SPECS)
+    config = ba_node_config_from_parameters(defaults)
+    assert config == BundleAdjustmentNodeConfig()
+    assert config.ba_config() == load_ba_config()
+
+
+def test_a_partial_ba_file_keeps_the_other_defaults(tmp_path: Path) -> None:
+    """A partial BA YAML named by ``config``: its pool values, the rest defaults."""
+    path = tmp_path / 'ba.yaml'
+    path.write_text('ba:\n  pool:\n    trigger: 6\n')
+    ba = BundleAdjustmentNodeConfig(config=str(path)).ba_config()
+    assert (ba.pool.trigger, ba.pool.stride) == (6, load_ba_config().pool.stride)
+
+
+@pytest.mark.parametrize('name,value,match', [
+    ('config', '/no/such/ba.yaml', 'config'),
+    ('keyframes.max_pending', 0, 'keyframes.max_pending'),
+    ('keyframes.max_gap_s', 0.0, 'keyframes.max_gap_s'),
+    ('world_frame_id', '', 'world_frame_id'),
+    ('status_period_s', 'often', 'status_period_s'),
+])
+def test_bad_values_name_the_parameter(name: str, value: object, match: str) -> None:
+    """A bad value raises ConfigError naming the parameter."""
+    values = load_ba_node_defaults()
+    values[name] = value
+    with pytest.raises(ConfigError, match=match):
+        ba_node_config_from_parameters(values).ba_config()
