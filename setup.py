@@ -37,6 +37,7 @@ setup(
             f'record = {PACKAGE_NAME}.ros.record_cli:main',
             f'bundle_adjustment = {PACKAGE_NAME}.ros.bundle_adjustment_main:main',
             f'bag_to_dataset = {PACKAGE_NAME}.convert.cli:console_main',
+            f'build_corpus = {PACKAGE_NAME}.data.corpus_cli:main',
         ],
     },
 )

@@ -1,0 +1,1 @@
+"""Adapters from datasets' published layouts to ``CorpusSequence`` objects."""

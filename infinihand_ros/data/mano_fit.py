@@ -1,0 +1,293 @@
+"""MANO fitting to 3D keypoints (paper Sec. 3.1: where a dataset has only 3D hand keypoints).
+
+``fit_mano`` fits pose, shape, global orientation and translation of any ``HandModel`` (the
+built-in skeleton or real MANO) to a sequence of (T, 21, 3) keypoints with per-joint validity,
+all frames in one batch. The objective, in millimetres so the weights read naturally, is
+
+    mean over valid joints of |J(theta_t) - K_t|^2
+    + smoothness_weight * mean |L_{t+1} - 2 L_t + L_{t-1}|^2   (L: joints minus the wrist)
+    + pose_prior_weight * mean |hand_pose|^2 + betas_prior_weight * mean |betas|^2.
+
+The acceleration term carries the fit through frames without keypoints and damps keypoint
+noise; the small priors pick one solution where joints do not determine it (a finger's twist
+about its own bone). Orientation and translation start from a rigid (Kabsch) fit of the rest
+palm to the keypoints, then L-BFGS refines everything. One shape per sequence by default (one
+person per hand track).
+"""
+
+from dataclasses import dataclass
+import time
+from typing import Final
+
+from infinihand_ros.core.config import require_at_least
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.hand_conventions import NUM_BETAS
+from infinihand_ros.core.hand_conventions import NUM_HAND_POSE_JOINTS
+from infinihand_ros.core.hand_conventions import NUM_JOINTS
+from infinihand_ros.mano.base import HandModel
+import numpy as np
+import roma
+import torch
+
+#: Palm joints (wrist, MCPs of index, middle, ring, pinky) used for the rigid initialisation.
+PALM_JOINTS: Final = (0, 5, 9, 13, 17)
+_M_TO_MM: Final = 1000.0
+
+
+@dataclass(frozen=True)
+class ManoFitConfig:
+    """Settings of the keypoint fit (``config/corpus.yaml``, section ``mano_fit``).
+
+    Attributes:
+        iterations: L-BFGS iterations (each with a strong-Wolfe line search).
+        history: L-BFGS history size.
+        shared_betas: one shape for the whole sequence (else one per frame).
+        smoothness_weight: weight of the joint-acceleration term (per mm^2 of acceleration).
+        pose_prior_weight: weight of the hand-pose prior (mm^2 per rad^2).
+        betas_prior_weight: weight of the shape prior (mm^2 per unit^2).
+        tolerance_mm: stop when the RMS step of the joints falls below this (mm).
+
+    """
+
+    iterations: int = 200
+    history: int = 100
+    shared_betas: bool = True
+    smoothness_weight: float = 0.05
+    pose_prior_weight: float = 0.01
+    betas_prior_weight: float = 0.01
+    tolerance_mm: float = 1e-4
+
+    def __post_init__(self) -> None:
+        require_at_least('mano_fit', 1, iterations=self.iterations, history=self.history)
+        require_at_least('mano_fit', 0.0, smoothness_weight=self.smoothness_weight,
+                         pose_prior_weight=self.pose_prior_weight,
+                         betas_prior_weight=self.betas_prior_weight,
+                         tolerance_mm=self.tolerance_mm)
+
+
+@dataclass(frozen=True)
+class ManoFitResult:
+    """Fitted parameters and residuals of one hand track (float64, T frames).
+
+    Attributes:
+        global_orient: (T, 3) axis-angle, frame of the keypoints.
+        hand_pose: (T, 15, 3) axis-angle, flat-hand relative.
+        betas: (T, 10) shape (the same row in every frame with ``shared_betas``).
+        transl: (T, 3) metres.
+        joints: (T, 21, 3) fitted joints, metres, frame of the keypoints.
+        joint_errors_mm: (T, 21) distance fitted-to-keypoint, NaN where the joint was invalid.
+        frame_errors_mm: (T,) mean of the valid joint errors, NaN for frames without any.
+        iterations: L-BFGS iterations run.
+        seconds: wall time of the fit.
+
+    """
+
+    global_orient: np.ndarray
+    hand_pose: np.ndarray
+    betas: np.ndarray
+    transl: np.ndarray
+    joints: np.ndarray
+    joint_errors_mm: np.ndarray
+    frame_errors_mm: np.ndarray
+    iterations: int
+    seconds: float
+
+    @property
+    def frames_per_second(self) -> float:
+        """Frames fitted per second of wall time."""
+        return len(self.joints) / max(self.seconds, 1e-9)
+
+
+def _check_inputs(keypoints: np.ndarray, valid: np.ndarray | None) -> tuple[np.ndarray, ...]:
+    """Return (keypoints (T, 21, 3) float64 with invalid joints zeroed, valid (T, 21) bool)."""
+    points = np.asarray(keypoints, dtype=np.float64)
+    if points.ndim != 3 or points.shape[1:] != (NUM_JOINTS, 3) or len(points) == 0:
+        raise InputError(f'keypoints: expected shape (T, {NUM_JOINTS}, 3) with T >= 1, got '
+                         f'{points.shape}')
+    mask = np.ones(points.shape[:2], bool) if valid is None else np.asarray(valid, bool)
+    if mask.shape != points.shape[:2]:
+        raise InputError(f'valid: expected shape {points.shape[:2]}, got {mask.shape}')
+    mask = mask & np.all(np.isfinite(points), axis=-1)
+    return np.where(mask[..., None], points, 0.0), mask
+
+
+def _rigid_init(model: HandModel, points: torch.Tensor,
+                valid: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+    """Orientation (T, 3) and translation (T, 3) aligning the rest palm with the keypoints.
+
+    Frames with fewer than three valid palm joints take the nearest frame that has them (or the
+    identity at the keypoints' mean when no frame has).
+    """
+    frames = points.shape[0]
+    zeros = points.new_zeros
+    rest = model(zeros(1, 3), zeros(1, NUM_HAND_POSE_JOINTS, 3), zeros(1, NUM_BETAS),
+                 zeros(1, 3)).joints[0]
+    palm = list(PALM_JOINTS)
+    weights = valid[:, palm].to(points.dtype)
+    usable = (weights.sum(dim=1) >= 3).cpu().numpy()
+    rotation = torch.eye(3, dtype=points.dtype).expand(frames, 3, 3).clone()
+    shift = points.new_zeros(frames, 3)
+    if usable.any():
+        index = np.flatnonzero(usable)
+        rot, trans = roma.rigid_points_registration(
+            rest[palm].expand(len(index), -1, -1), points[index][:, palm],
+            weights=weights[index] + 1e-12)
+        nearest = index[np.abs(np.arange(frames)[:, None] - index[None]).argmin(axis=1)]
+        lookup = {int(i): k for k, i in enumerate(index)}
+        picks = [lookup[int(i)] for i in nearest]
+        rotation, shift = rot[picks], trans[picks]
+    elif valid.any():
+        shift = shift + points[valid].mean(dim=0) - rest[0]
+    root = rest[0]
+    # Model joints are R (P - J0) + J0 + transl; the rigid fit is R P + t.
+    transl = shift + torch.einsum('tij,j->ti', rotation, root) - root
+    return roma.rotmat_to_rotvec(rotation), transl
+
+
+def _acceleration(joints: torch.Tensor) -> torch.Tensor:
+    """Mean squared second difference over time of wrist-relative (T, 21, 3) joints.
+
+    Wrist-relative, so head and arm motion (often metres per second in the camera frame) are
+    not smoothed, only the articulation and orientation; 0 for T < 3.
+    """
+    if joints.shape[0] < 3:
+        return joints.new_zeros(())
+    local = joints - joints[:, :1]
+    accel = local[2:] - 2.0 * local[1:-1] + local[:-2]
+    return (accel * accel).sum(dim=-1).mean()
+
+
+@dataclass
+class _Parameters:
+    """Optimisation variables of a track (T frames; translation in mm)."""
+
+    orient: torch.Tensor
+    pose: torch.Tensor
+    betas: torch.Tensor
+    transl_mm: torch.Tensor
+
+    def tensors(self) -> list[torch.Tensor]:
+        """Return the variables in a fixed order."""
+        return [self.orient, self.pose, self.betas, self.transl_mm]
+
+    def select(self, frames: np.ndarray) -> '_Parameters':
+        """Return copies of the variables of ``frames`` (shared betas stay shared)."""
+        betas = self.betas if len(self.betas) == 1 else self.betas[frames]
+        return _Parameters(self.orient[frames].clone(), self.pose[frames].clone(),
+                           betas.clone(), self.transl_mm[frames].clone())
+
+
+def _joints_mm(model: HandModel, params: _Parameters) -> torch.Tensor:
+    """Model joints (T, 21, 3) in millimetres."""
+    frames = params.orient.shape[0]
+    return model(params.orient, params.pose, params.betas.expand(frames, NUM_BETAS),
+                 params.transl_mm / _M_TO_MM).joints * _M_TO_MM
+
+
+def _solve(model: HandModel, points_mm: torch.Tensor, weight: torch.Tensor,
+           params: _Parameters, config: ManoFitConfig) -> int:
+    """Minimise the objective over ``params`` in place; return the L-BFGS iterations run."""
+    variables = [tensor.requires_grad_(True) for tensor in params.tensors()]
+    count = weight.sum().clamp(min=1.0)
+    optimizer = torch.optim.LBFGS(variables, lr=1.0, max_iter=config.iterations,
+                                  history_size=config.history,
+                                  tolerance_change=config.tolerance_mm ** 2,
+                                  tolerance_grad=1e-9, line_search_fn='strong_wolfe')
+
+    def objective() -> torch.Tensor:
+        optimizer.zero_grad()
+        joints = _joints_mm(model, params)
+        data = (((joints - points_mm) ** 2).sum(dim=-1) * weight).sum() / count
+        loss = (data + config.smoothness_weight * _acceleration(joints)
+                + config.pose_prior_weight * (params.pose * params.pose).mean()
+                + config.betas_prior_weight * (params.betas * params.betas).mean())
+        loss.backward()
+        return loss
+
+    optimizer.step(objective)
+    for tensor in variables:
+        tensor.requires_grad_(False)
+    return int(optimizer.state[variables[0]].get('n_iter', 0))
+
+
+def _fill_gaps(params: _Parameters, fitted: _Parameters, known: np.ndarray) -> None:
+    """Write the ``fitted`` variables of the ``known`` frames into ``params``.
+
+    The other frames get them interpolated linearly (held constant beyond the ends).
+    """
+    frames = np.arange(params.orient.shape[0])
+    for target, source in ((params.orient, fitted.orient), (params.pose, fitted.pose),
+                           (params.transl_mm, fitted.transl_mm)):
+        flat = source.reshape(len(known), -1).cpu().numpy()
+        filled = np.stack([np.interp(frames, known, column) for column in flat.T], axis=1)
+        target.copy_(torch.as_tensor(filled.reshape(target.shape), dtype=target.dtype))
+    if len(params.betas) == 1:
+        params.betas.copy_(fitted.betas)
+    else:
+        params.betas[known] = fitted.betas
+
+
+def _initial_parameters(model: HandModel, points_mm: torch.Tensor, mask: torch.Tensor,
+                        shared_betas: bool) -> _Parameters:
+    """Rigid palm alignment, flat hand and mean shape."""
+    frames = points_mm.shape[0]
+    with torch.no_grad():
+        orient, transl = _rigid_init(model, points_mm / _M_TO_MM, mask)
+    return _Parameters(orient, points_mm.new_zeros(frames, NUM_HAND_POSE_JOINTS, 3),
+                       points_mm.new_zeros(1 if shared_betas else frames, NUM_BETAS),
+                       transl * _M_TO_MM)
+
+
+def fit_mano(model: HandModel, keypoints: np.ndarray, valid: np.ndarray | None = None,
+             config: ManoFitConfig = ManoFitConfig()) -> ManoFitResult:
+    """Fit the hand model to a track of 3D keypoints.
+
+    The fit runs in the model's dtype and device (float64 gives the most exact fits). When some
+    frames have no valid keypoint, the frames that have are fitted first and their parameters
+    interpolated into the gaps before the whole track is refined.
+
+    Args:
+        model: hand model of the keypoints' side.
+        keypoints: (T, 21, 3) joints in metres, OpenPose order, any frame.
+        valid: (T, 21) bool, which joints to fit (default: every finite one).
+        config: weights and iteration limits.
+
+    Returns:
+        The fitted parameters, joints and per-frame residuals.
+
+    Raises:
+        InputError: for keypoints or validity of the wrong shape.
+
+    """
+    start = time.perf_counter()
+    points_np, valid_np = _check_inputs(keypoints, valid)
+    reference = next(model.buffers())
+    points = torch.as_tensor(points_np * _M_TO_MM, dtype=reference.dtype, device=reference.device)
+    mask = torch.as_tensor(valid_np, device=reference.device)
+    weight = mask.to(points.dtype)
+    params = _initial_parameters(model, points, mask, config.shared_betas)
+    known = np.flatnonzero(valid_np.any(axis=1))
+    iterations = 0
+    if 0 < len(known) < len(points):
+        subset = params.select(known)
+        iterations += _solve(model, points[known], weight[known], subset, config)
+        with torch.no_grad():
+            _fill_gaps(params, subset, known)
+    iterations += _solve(model, points, weight, params, config)
+    with torch.no_grad():
+        joints = _joints_mm(model, params).cpu().numpy().astype(np.float64)
+    errors = np.linalg.norm(joints - points_np * _M_TO_MM, axis=-1)
+    errors = np.where(valid_np, errors, np.nan)
+    counts = valid_np.sum(axis=1)
+    frame_errors = np.full(len(points), np.nan)
+    frame_errors[counts > 0] = np.nansum(errors, axis=1)[counts > 0] / counts[counts > 0]
+
+    def numpy(tensor: torch.Tensor) -> np.ndarray:
+        return tensor.detach().cpu().numpy().astype(np.float64)
+
+    return ManoFitResult(
+        global_orient=numpy(params.orient), hand_pose=numpy(params.pose),
+        betas=np.broadcast_to(numpy(params.betas), (len(points), NUM_BETAS)).copy(),
+        transl=numpy(params.transl_mm) / _M_TO_MM, joints=joints / _M_TO_MM,
+        joint_errors_mm=errors, frame_errors_mm=frame_errors, iterations=iterations,
+        seconds=time.perf_counter() - start)
