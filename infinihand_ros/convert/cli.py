@@ -1,8 +1,10 @@
 """Command line ``bag_to_dataset INPUT... --output DIR``: bags and videos to a LeRobot dataset.
 
 Exit codes: 0 when every input converted (or was already in the dataset), 1 when at least one
-input failed (all others are converted and written), 2 for usage errors (bad flags, settings
-or output directory), 130 when interrupted (the dataset keeps every finished episode).
+input failed (all others are converted and written), 2 for usage errors (bad flags, settings,
+output directory, or a Ray cluster that cannot be reached), 130 when interrupted (the dataset
+keeps every finished episode). ``--ray`` runs the inputs on Ray (``ray_run``; Ray itself is
+imported only then); the dataset is the same as the local run's.
 """
 
 import argparse
@@ -17,6 +19,9 @@ from infinihand_ros.convert.config import ConvertConfig
 from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.dataset_writer import DatasetWriter
 from infinihand_ros.convert.inputs import discover_inputs
+from infinihand_ros.convert.inputs import InputSource
+from infinihand_ros.convert.ray_run import convert_on_ray
+from infinihand_ros.convert.ray_run import RayStartError
 from infinihand_ros.convert.report import EpisodeReport
 from infinihand_ros.convert.report import FAILED
 from infinihand_ros.convert.report import summary_table
@@ -63,6 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help='do not write the MCAP bag of estimates per episode')
     parser.add_argument('--config', type=Path, help='converter settings (default: '
                         'config/convert.yaml)')
+    parser.add_argument('--ray', nargs='?', const='', metavar='ADDRESS',
+                        help='convert on a Ray cluster, one task per input: ADDRESS of the '
+                        'cluster (auto, HOST:6379, ray://HOST:10001), or none for RAY_ADDRESS, '
+                        'the cluster last started here, else a new local instance; the output '
+                        'must be on storage every node sees')
     parser.add_argument('--quiet', action='store_true', help='no progress bars')
     return parser
 
@@ -119,6 +129,17 @@ def _finish(reports: list[EpisodeReport], output: Path) -> None:
     (output / REPORT_FILE).write_text(data, encoding='utf-8')
 
 
+def convert_locally(sources: list[InputSource], config: ConvertConfig, options: RunOptions,
+                    writer: DatasetWriter, reports: list[EpisodeReport]) -> None:
+    """Convert ``sources`` one after the other in this process; append to ``reports``."""
+    run = ConversionRun(config, options, writer, reports)
+    try:
+        for source in tqdm(sources, desc='inputs', unit='input', disable=not options.progress):
+            run.convert(source)
+    finally:
+        run.close()
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the converter; return the exit code."""
     logging.basicConfig(level=logging.WARNING, format='%(levelname)s %(name)s: %(message)s')
@@ -130,23 +151,24 @@ def main(argv: list[str] | None = None) -> int:
         print(f'bag_to_dataset: error: {exc}', file=sys.stderr)
         return EXIT_USAGE
     sources, failures = discover_inputs(args.inputs)
-    run = ConversionRun(config, options, writer)
-    run.reports += [EpisodeReport(str(f.path), status=FAILED, error=f.reason)
-                    for f in failures]
+    reports = [EpisodeReport(str(f.path), status=FAILED, error=f.reason) for f in failures]
     interrupted = False
     try:
-        for source in tqdm(sources, desc='inputs', unit='input', disable=not options.progress):
-            run.convert(source)
+        if args.ray is None:
+            convert_locally(sources, config, options, writer, reports)
+        else:
+            convert_on_ray(args.ray or None, sources, config, options, writer, reports)
     except KeyboardInterrupt:
         interrupted = True
         print(f'interrupted: the dataset keeps its {writer.num_episodes} finished episodes',
               file=sys.stderr)
-    finally:
-        run.close()
-    _finish(run.reports, options.output)
+    except RayStartError as exc:  # nothing was converted
+        print(f'bag_to_dataset: error: {exc}', file=sys.stderr)
+        return EXIT_USAGE
+    _finish(reports, options.output)
     if interrupted:
         return EXIT_INTERRUPTED
-    return EXIT_FAILED if any(r.status == FAILED for r in run.reports) else EXIT_OK
+    return EXIT_FAILED if any(r.status == FAILED for r in reports) else EXIT_OK
 
 
 def console_main() -> None:

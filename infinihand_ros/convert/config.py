@@ -1,7 +1,8 @@
 """Settings of the bag-to-dataset converter (``config/convert.yaml``), checked at load.
 
 ``convert`` -> ``engine`` (which engine file, mode and bundle adjustment) -> ``dataset`` (LeRobot
-layout values) -> ``video`` (encoder). Command-line flags replace single values afterwards.
+layout values) -> ``video`` (encoder) -> ``ray`` (``--ray`` workers). Command-line flags replace
+single values afterwards.
 """
 
 from dataclasses import dataclass
@@ -99,6 +100,34 @@ class VideoSettings:
 
 
 @dataclass(frozen=True)
+class RaySettings:
+    """How ``--ray`` spreads the inputs over a Ray cluster (section ``convert.ray``).
+
+    Attributes:
+        workers: converter actors, each holding one engine; 0 = one per ``gpus_per_worker``
+            GPUs when the cluster has GPUs, else one per ``cpus_per_worker`` CPUs.
+        cpus_per_worker: CPUs reserved by each actor.
+        gpus_per_worker: GPUs reserved by each actor on a cluster with GPUs (run the engine on
+            them with ``engine.device: cuda`` in the engine file).
+        local_cpus: CPUs of the local Ray instance that ``--ray`` without an address starts;
+            None for all of this machine's.
+
+    """
+
+    workers: int = 0
+    cpus_per_worker: float = 1.0
+    gpus_per_worker: float = 1.0
+    local_cpus: int | None = None
+
+    def __post_init__(self) -> None:
+        require_at_least('convert.ray', 0, workers=self.workers)
+        require_positive('convert.ray', cpus_per_worker=self.cpus_per_worker,
+                         gpus_per_worker=self.gpus_per_worker)
+        if self.local_cpus is not None:
+            require_at_least('convert.ray', 1, local_cpus=self.local_cpus)
+
+
+@dataclass(frozen=True)
 class ConvertConfig:
     """Everything the converter needs besides its inputs and output.
 
@@ -115,6 +144,9 @@ class ConvertConfig:
         dataset: LeRobot layout values.
         video: the video encoder.
         estimates_bag: also write an MCAP bag of the estimates per episode.
+        estimates_path_length: camera positions in the bag's camera-path marker (the newest
+            are kept, as the node's ``outputs.path_length``).
+        ray: the workers of ``--ray``.
 
     """
 
@@ -127,9 +159,12 @@ class ConvertConfig:
     dataset: DatasetLayout = field(default_factory=DatasetLayout)
     video: VideoSettings = field(default_factory=VideoSettings)
     estimates_bag: bool = True
+    estimates_path_length: int = 1000
+    ray: RaySettings = field(default_factory=RaySettings)
 
     def __post_init__(self) -> None:
-        require_at_least('convert', 1, fps=self.fps)
+        require_at_least('convert', 1, fps=self.fps,
+                         estimates_path_length=self.estimates_path_length)
         require_positive('convert', max_source_gap_s=self.max_source_gap_s)
         if self.episode_max_s is not None and not (
                 math.isfinite(self.episode_max_s) and self.episode_max_s > 0):

@@ -114,7 +114,8 @@ def convert_episode(frames: Iterable[SourceFrame], engine: StreamingEngine,
 
     """
     start = time.perf_counter()
-    bag = None if typestore is None else EstimatesBagWriter(work_dir / ESTIMATES_FILE, typestore)
+    bag = None if typestore is None else EstimatesBagWriter(
+        work_dir / ESTIMATES_FILE, typestore, config.estimates_path_length)
     collector = _Collector(config.dataset.invalid_fill, bag)
     push_of_slot: list[int] = []
     source_stamps: list[int] = []

@@ -8,19 +8,21 @@ run goes on; an episode already in the dataset (same source) is skipped.
 
 from collections import Counter
 from collections.abc import Iterator
+import contextlib
 from dataclasses import dataclass
 from dataclasses import replace
 import itertools
 import logging
 from pathlib import Path
+from typing import Protocol
 
 from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.convert.bag_frames import read_bag_frames
 from infinihand_ros.convert.config import ConvertConfig
-from infinihand_ros.convert.dataset_writer import DatasetWriter
 from infinihand_ros.convert.episode import ConversionError
 from infinihand_ros.convert.episode import convert_episode
+from infinihand_ros.convert.episode import EpisodeData
 from infinihand_ros.convert.frame_log import FrameLog
 from infinihand_ros.convert.inputs import InputSource
 from infinihand_ros.convert.inputs import VIDEO
@@ -63,6 +65,19 @@ class RunOptions:
     progress: bool = True
 
 
+class EpisodeSink(Protocol):
+    """Where converted episodes go: the dataset (``DatasetWriter``) or a worker's shard."""
+
+    def finished_sources(self) -> set[str]:
+        """Return the sources whose episodes are already done."""
+
+    def staging(self) -> contextlib.AbstractContextManager[Path]:
+        """Return a context giving a fresh working directory for one episode."""
+
+    def add(self, episode: EpisodeData, task: str) -> int:
+        """Keep a converted episode; return its index."""
+
+
 def engine_config_for(config: ConvertConfig) -> EngineConfig:
     """Return the engine settings of ``config.engine`` (mode and bundle adjustment applied)."""
     choice = config.engine
@@ -89,13 +104,21 @@ def task_for(source: InputSource, config: ConvertConfig) -> str:
 class ConversionRun:
     """Converts inputs into the dataset of ``options.output``; collects the reports."""
 
-    def __init__(self, config: ConvertConfig, options: RunOptions,
-                 writer: DatasetWriter) -> None:
-        """Prepare a run (the engine is built when the first episode needs it)."""
+    def __init__(self, config: ConvertConfig, options: RunOptions, writer: EpisodeSink,
+                 reports: list[EpisodeReport] | None = None) -> None:
+        """Prepare a run (the engine is built when the first episode needs it).
+
+        Args:
+            config: the converter settings.
+            options: what to convert besides the settings.
+            writer: receives each converted episode.
+            reports: list the reports are appended to (a new one when None).
+
+        """
         self.config = config
         self.options = options
         self.writer = writer
-        self.reports: list[EpisodeReport] = []
+        self.reports: list[EpisodeReport] = [] if reports is None else reports
         self._engine: StreamingEngine | None = None
         self._typestore = build_typestore() if config.estimates_bag else None
         self._marks: tuple[int, Counter, Counter] = (0, Counter(), Counter())

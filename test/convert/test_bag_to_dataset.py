@@ -23,6 +23,7 @@ from infinihand_ros.convert.cli import main
 from infinihand_ros.convert.cli import REPORT_FILE
 from infinihand_ros.convert.config import VideoSettings
 from infinihand_ros.convert.estimates_bag import HAND_FRAME_TOPIC
+from infinihand_ros.convert.estimates_bag import MARKERS_TOPIC
 from infinihand_ros.convert.features import FRAME_FEATURES
 from infinihand_ros.convert.video_writer import EpisodeVideoWriter
 import numpy as np
@@ -109,6 +110,7 @@ def test_bags_convert_and_read_back(synth_bags: list[Path], tmp_path: Path) -> N
     assert data['source.stamp_ns'] == source_stamps
     with BagReader(output / 'estimates/episode_000000') as reader:
         assert reader.topics()[HAND_FRAME_TOPIC].count == 6
+        assert reader.topics()[MARKERS_TOPIC].count == 6
     reports = _report(output)
     assert [r['status'] for r in reports] == ['converted', 'converted']
     assert reports[0]['frames_in'] == 6 and reports[0]['frames_out'] == 6
