@@ -1,20 +1,18 @@
 """``python -m infinihand_ros.demo``: the main job on the embedded default (``make demo``).
 
-Until the estimator node and trained weights land, the demo reads the bundled sample bag,
-regenerates its sequence with the synthetic generator (bag, training samples, previews) into
-``--out`` (replacing only an empty directory or an earlier demo output), checks that the fresh
-ground truth equals the bag's, and streams the bag's frames through the engine with the
-untrained tiny model (so only its speed and output shapes mean something). It prints what it
-read, the generation and engine speeds and where the previews are.
+The demo reads the bundled sample bag, regenerates its sequence with the synthetic generator
+(bag, training samples, previews) into ``--out`` (replacing only an empty directory or an
+earlier demo output) and checks that the fresh ground truth equals the bag's. Then it streams
+the bag's frames through the engine with the embedded trained model and evaluates the
+estimates against the bag's ground truth (``eval/``): it prints the evaluation tables (ours
+beside the baselines) and writes the prediction file and the plots into ``--out``/eval.
 """
 
 import argparse
 from pathlib import Path
 import sys
-import time
 from typing import Final
 
-from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.bag.messages import msg_to_frame_result
 from infinihand_ros.bag.messages import msg_to_pose
 from infinihand_ros.bag.reader import BagReader
@@ -28,6 +26,11 @@ from infinihand_ros.engine.config import ENGINE_SECTION
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.eval.cli import mean_pose_joints
+from infinihand_ros.eval.cli import save_outputs
+from infinihand_ros.eval.report import markdown_tables
+from infinihand_ros.eval.runner import evaluate
+from infinihand_ros.eval.sequences import open_eval_sequence
 from infinihand_ros.synth import cli
 from infinihand_ros.synth.sample_bag import load_sample_settings
 from infinihand_ros.synth.sample_bag import sample_bag_path
@@ -43,6 +46,8 @@ SAME_SEQUENCE_TOLERANCE_M: Final = 1e-9
 OUTPUT_MARKER: Final = '.infinihand_demo'
 #: The resolved engine configuration the demo ran with, saved beside its outputs.
 ENGINE_CONFIG_FILE: Final = 'engine_config.yaml'
+#: Folder of ``--out`` with the evaluation's prediction file and plots.
+EVAL_DIR: Final = 'eval'
 
 
 def read_ground_truth(bag: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -76,23 +81,20 @@ def describe_bag(bag: Path) -> str:
     return '\n'.join(lines)
 
 
-def run_engine(bag: Path, config: EngineConfig) -> str:
-    """Stream the bag's camera frames through the engine; return a one-line summary."""
-    results = frames = hands = 0
-    start = time.perf_counter()
-    with StreamingEngine(config) as engine:
-        for frame in read_camera_frames(bag):  # streamed: never the whole bag in memory
-            frames += 1
-            for result in engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics):
-                results += 1
-                hands += len(result.hands)
-        for result in engine.flush():
-            results += 1
-            hands += len(result.hands)
-    elapsed = time.perf_counter() - start
-    return (f'Engine ({config.model.geometry} model, untrained seeded weights, {config.mode} '
-            f'mode): {results} results for {frames} frames at {frames / elapsed:.1f} '
-            f'frames/s, {hands} hand detections (meaningless until trained weights exist)')
+def evaluate_bag(bag: Path, config: EngineConfig, out: Path) -> str:
+    """Run the engine over the bag, evaluate it against the bag's ground truth; return a report.
+
+    Writes the prediction file and the plots into ``out``.
+    """
+    sequence = open_eval_sequence(bag)
+    mean_pose, mean_pose_source = mean_pose_joints(None, config, [sequence])
+    evaluation = evaluate([sequence], lambda: StreamingEngine(config), mean_pose)
+    save_outputs(out, evaluation.sequences[0], sequence)
+    checkpoint = config.model.checkpoint or f'seeded weights (seed {config.model.seed})'
+    return '\n'.join([
+        f'Engine ({checkpoint}, {config.mode} mode) on the bag: '
+        f'{evaluation.ours["frames/s"]:.1f} frames/s; evaluation against its ground truth '
+        f'(mean pose: {mean_pose_source}):', '', markdown_tables(evaluation)])
 
 
 def validate_out(out: Path) -> None:
@@ -127,6 +129,7 @@ def run(out: Path, bag: Path) -> str:
                                           'replaces this directory on its next run.\n')
         (work / ENGINE_CONFIG_FILE).write_text(dump_config(engine_config, ENGINE_SECTION),
                                                encoding='utf-8')
+        evaluation = evaluate_bag(bag, engine_config, work / EVAL_DIR)
     if fresh_cameras.shape != cameras.shape:
         raise InfiniHandError(f'{bag} holds {len(cameras)} frames but its settings give '
                               f'{len(fresh_cameras)}; regenerate it with '
@@ -151,7 +154,8 @@ def run(out: Path, bag: Path) -> str:
         f'  bag: {out / cli.BAG_DIR}; training samples: {out / cli.SAMPLES_DIR}',
         f'  resolved engine config: {out / ENGINE_CONFIG_FILE}',
         '',
-        run_engine(bag, engine_config),
+        evaluation,
+        f'Prediction file and plots: {out / EVAL_DIR}',
     ]
     return '\n'.join(report)
 

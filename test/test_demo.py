@@ -1,14 +1,16 @@
-"""The demo (``make demo``) runs on the embedded sample bag and reproduces it."""
+"""The demo (``make demo``) reproduces the embedded sample bag and evaluates the bundled model."""
 
 from pathlib import Path
 
 from infinihand_ros import demo
+from infinihand_ros.eval.prediction_files import read_predictions
 from infinihand_ros.synth import cli
 import pytest
 
 
 @pytest.mark.slow
-def test_demo_regenerates_the_sample_bag(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+def test_demo_regenerates_the_sample_bag_and_evaluates(tmp_path: Path,
+                                                       capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / 'demo'
     out.mkdir()
     (out / demo.OUTPUT_MARKER).write_text('an earlier demo run')
@@ -17,7 +19,14 @@ def test_demo_regenerates_the_sample_bag(tmp_path: Path, capsys: pytest.CaptureF
     report = capsys.readouterr().out
     assert 'ground truth identical to the bag: True' in report
     assert '150 x infinihand_msgs/msg/HandFrame' in report
-    assert '150 results for 150 frames' in report
+    assert 'Engine (tiny_synthetic, per_frame mode) on the bag' in report
+    for table in ('**Detection**', '**World space**', '**Camera trajectory**'):
+        assert table in report
+    assert '| static-camera |' in report and '| mean-hand |' in report
+    assert 'mean pose: training set' in report
+    evaluated = out / demo.EVAL_DIR
+    assert read_predictions(evaluated / 'sample_bag.npz')['T_world_cam'].shape == (150, 4, 4)
+    assert (evaluated / 'sample_bag_top_view.png').stat().st_size > 0
     assert not (out / 'stale.txt').exists()
     assert (out / demo.OUTPUT_MARKER).is_file()
     for name in (cli.FRAMES_PREVIEW, cli.TRAJECTORY_PREVIEW, cli.RESOLVED_CONFIG):

@@ -1,6 +1,7 @@
 """Build the engine's model: from checkpoints when configured, else seeded initial weights.
 
-``engine.model`` may name a whole-model checkpoint (``checkpoint``) or the parts
+``engine.model`` may name a whole-model checkpoint (``checkpoint``: a directory or a bundled
+model's name, ``model/io/bundled.py``) or the parts
 ``geometry_weights`` (a converted LingBot-Map / VGGT checkpoint) and ``crop_encoder_weights`` (a
 converted WiLoR checkpoint); ``model/io/compose.py`` loads them together and seeds what none of
 them provides with ``engine.model.seed``. The hand models come from ``engine.model.hand_model``
@@ -17,6 +18,7 @@ from infinihand_ros.mano.hand_model import build_hand_model
 from infinihand_ros.model.infinihand_model import build_infinihand_model
 from infinihand_ros.model.infinihand_model import InfiniHandModel
 from infinihand_ros.model.infinihand_model import load_branch_configs
+from infinihand_ros.model.io.bundled import resolve_checkpoint
 from infinihand_ros.model.io.compose import load_composed_model
 
 logger = logging.getLogger(__name__)
@@ -45,7 +47,8 @@ def build_model(config: EngineConfig,
     if hand_models is None:
         hand_models = (build_hand_model(selection.hand_model, LEFT),
                        build_hand_model(selection.hand_model, RIGHT))
-    parts = {'full': selection.checkpoint, 'geometry': selection.geometry_weights,
+    full = None if selection.checkpoint is None else str(resolve_checkpoint(selection.checkpoint))
+    parts = {'full': full, 'geometry': selection.geometry_weights,
              'crop_encoder': selection.crop_encoder_weights}
     if all(path is None for path in parts.values()):
         model = build_infinihand_model(geometry_config, hand_config, seed=selection.seed,

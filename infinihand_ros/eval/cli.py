@@ -30,12 +30,11 @@ from infinihand_ros.eval.runner import Evaluation
 from infinihand_ros.eval.runner import SequenceEvaluation
 from infinihand_ros.eval.sequences import EvalSequence
 from infinihand_ros.eval.sequences import open_eval_sequence
+from infinihand_ros.model.io.bundled import MEAN_POSE_FILE
+from infinihand_ros.model.io.bundled import resolve_checkpoint
 import numpy as np
 
 logger = logging.getLogger(__name__)
-
-#: File of a checkpoint directory holding the training set's mean articulation (right hand).
-MEAN_POSE_FILE = 'mean_pose.json'
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -65,8 +64,7 @@ def engine_config(args: argparse.Namespace) -> EngineConfig:
     """Return the engine config the arguments ask for."""
     config = load_engine_config(args.engine_config)
     if args.checkpoint is not None:
-        if not Path(args.checkpoint).is_dir():
-            raise InfiniHandError(f'--checkpoint {args.checkpoint}: no such directory')
+        resolve_checkpoint(args.checkpoint)  # a directory or a bundled name, else an error
         model = dataclasses.replace(config.model, checkpoint=args.checkpoint,
                                     geometry_weights=None, crop_encoder_weights=None)
         config = dataclasses.replace(config, model=model)
@@ -77,12 +75,16 @@ def engine_config(args: argparse.Namespace) -> EngineConfig:
     return config
 
 
-def mean_pose_joints(args: argparse.Namespace, config: EngineConfig,
+def mean_pose_joints(explicit: str | None, config: EngineConfig,
                      sequences: list[EvalSequence]) -> tuple[np.ndarray, str]:
-    """Return the mean-pose skeletons (2, 21, 3) and where the articulation came from."""
-    source = args.mean_pose
+    """Return the mean-pose skeletons (2, 21, 3) and where the articulation came from.
+
+    From ``explicit`` (a JSON file) when given, else the checkpoint's ``mean_pose.json``, else
+    (with a warning) the evaluated sequences' own mean articulation.
+    """
+    source = explicit
     if source is None and config.model.checkpoint is not None:
-        candidate = Path(config.model.checkpoint) / MEAN_POSE_FILE
+        candidate = resolve_checkpoint(config.model.checkpoint) / MEAN_POSE_FILE
         source = str(candidate) if candidate.is_file() else None
     if source is not None:
         try:
@@ -130,7 +132,7 @@ def prepare(args: argparse.Namespace) -> EvaluationPlan:
                               f'files), got {names}')
     if args.save_predictions is not None:
         check_writable_location(args.save_predictions, '--save-predictions')
-    joints, source = mean_pose_joints(args, config, sequences)
+    joints, source = mean_pose_joints(args.mean_pose, config, sequences)
     return EvaluationPlan(config, sequences, joints, source)
 
 

@@ -14,6 +14,9 @@ from infinihand_ros.model.hand.config import HandBranchConfig
 from infinihand_ros.model.infinihand_model import build_infinihand_model
 from infinihand_ros.model.infinihand_model import InfiniHandModel
 from infinihand_ros.model.infinihand_model import load_branch_configs
+from infinihand_ros.model.io.bundled import bundled_models
+from infinihand_ros.model.io.bundled import DEFAULT_MODEL
+from infinihand_ros.model.io.bundled import resolve_checkpoint
 from infinihand_ros.model.io.checkpoint import GEOMETRY_FILE
 from infinihand_ros.model.io.checkpoint import HAND_BRANCH_FILE
 from infinihand_ros.model.io.checkpoint import save_infinihand_checkpoint
@@ -34,10 +37,18 @@ def _assert_same_weights(ours: InfiniHandModel, theirs: InfiniHandModel) -> None
         assert torch.equal(tensor, expected[key]), key
 
 
-def test_shipped_engine_config_loads_no_weights() -> None:
+def test_shipped_engine_config_runs_the_bundled_model() -> None:
     selection = load_engine_config().model
     assert (selection.checkpoint, selection.geometry_weights,
-            selection.crop_encoder_weights) == (None, None, None)
+            selection.crop_encoder_weights) == (DEFAULT_MODEL, None, None)
+    assert DEFAULT_MODEL in bundled_models()
+
+
+def test_bundled_names_and_directories_resolve(tmp_path) -> None:
+    assert resolve_checkpoint(str(tmp_path)) == tmp_path
+    assert resolve_checkpoint(DEFAULT_MODEL).name == DEFAULT_MODEL
+    with pytest.raises(CheckpointError, match=f'bundled: .*{DEFAULT_MODEL}'):
+        resolve_checkpoint('no_such_model')
 
 
 def test_without_checkpoint_weights_are_seeded(hand_config: HandBranchConfig) -> None:
@@ -75,7 +86,7 @@ def test_checkpoint_configs_win_with_a_warning(model: InfiniHandModel, tmp_path,
 
 
 def test_missing_checkpoint_fails_clearly(tmp_path) -> None:
-    with pytest.raises(CheckpointError, match='no such checkpoint directory'):
+    with pytest.raises(CheckpointError, match='absent.*no such directory and no bundled model'):
         build_model(_engine(checkpoint=str(tmp_path / 'absent')))
 
 

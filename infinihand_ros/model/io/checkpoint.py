@@ -252,7 +252,8 @@ def _portable(tensors: Mapping[str, torch.Tensor]) -> dict[str, torch.Tensor]:
 def write_checkpoint(directory: str | Path, tensors: Mapping[str, torch.Tensor],
                      geometry_config: GeometryConfig | None = None,
                      hand_config: HandBranchConfig | None = None, source: str | None = None,
-                     overwrite: bool = False) -> Path:
+                     overwrite: bool = False,
+                     extra_files: Mapping[str, bytes] | None = None) -> Path:
     """Write a checkpoint (whole model or a part) to ``directory`` atomically.
 
     Args:
@@ -262,6 +263,7 @@ def write_checkpoint(directory: str | Path, tensors: Mapping[str, torch.Tensor],
         hand_config: required when there are ``hand_branch.*`` tensors (and only then).
         source: where the weights came from, recorded in the weights file's metadata.
         overwrite: replace an existing directory.
+        extra_files: more files of the directory (name -> content), e.g. a model card.
 
     Raises:
         CheckpointError: for keys outside the two branches, hand-model tensors, or a config
@@ -283,6 +285,8 @@ def write_checkpoint(directory: str | Path, tensors: Mapping[str, torch.Tensor],
             (staging / HAND_BRANCH_FILE).write_text(hand_branch_config_to_yaml(hand_config),
                                                     encoding='utf-8')
         save_file(portable, staging / WEIGHTS_FILE, metadata=metadata)
+        for name, content in (extra_files or {}).items():
+            (staging / name).write_bytes(content)
     return directory
 
 

@@ -1,0 +1,45 @@
+#!/bin/bash
+# Reproduce the bundled model models/tiny_synthetic on a CPU (docs/model_card.md): synthetic
+# training and held-out data, Stage I, Stage II, export, evaluation. Every step resumes: run it
+# again after an interruption and it continues where it stopped. Outputs go to runs/ (ignored
+# by git). Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS]]
+set -eo pipefail
+cd "$(dirname "$0")/.."
+source scripts/env.sh
+STAGE1_STEPS=${1:-1500}
+STAGE2_STEPS=${2:-1400}
+
+generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
+  if [ ! -f "$1/samples/meta.json" ]; then
+    rm -rf "$1"
+    python -m infinihand_ros.synth --out "$1" --seed "$2" --frames "$3" --fps "$4" \
+      --width "$5" --height "$6" --image-codec jpeg > /dev/null
+    rm -rf "$1/bag"
+  fi
+}
+
+# 80 training sequences (seeds 10000-10079, 10 s at 10 FPS, at the model's 224 x 168).
+for seed in $(seq 10000 10079); do
+  generate "runs/synth_train/seed_$seed" "$seed" 100 10 224 168
+done
+# 12 held-out sequences: other seeds, other frame rates (15 and 30 FPS) and size (320 x 240).
+for i in $(seq 0 11); do
+  seed=$((20000 + i)); fps=$([ "$i" -lt 6 ] && echo 15 || echo 30)
+  generate "runs/heldout/seed_${seed}_fps${fps}" "$seed" 150 "$fps" 320 240
+done
+
+train_stage() {  # train_stage OUTPUT ARGS...: a new run, or the resumed one
+  if [ -d "$1/checkpoints" ]; then
+    python -m infinihand_ros.train --resume "$1" --no-progress
+  else
+    python -m infinihand_ros.train --output "$@" --no-progress
+  fi
+}
+train_stage runs/tiny_stage1 --config config/train_tiny.yaml --steps "$STAGE1_STEPS"
+train_stage runs/tiny_stage2 --config config/train_tiny_stage2.yaml --steps "$STAGE2_STEPS" \
+  --init runs/tiny_stage1/checkpoints/final/model
+
+python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage2/checkpoints/final/model \
+  --out models/tiny_synthetic --train-sequences runs/synth_train --overwrite
+python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
+  --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
