@@ -47,17 +47,22 @@ class PoseTrackConfig:
             per frame (0.01: at most 1 % per frame).
         scale_deadband: the applied scale is left alone while the estimate is within this
             fraction of it (no version change for noise).
+        correction_blend_s: frame time over which live frames blend into a new BA correction
+            that comes from outside the engine (the BA node); with the engine's own BA,
+            ``bundle_adjustment.corrections.blend_s`` applies instead.
 
     """
 
     capacity: int = 1024
     max_scale_step: float = 0.01
     scale_deadband: float = 0.002
+    correction_blend_s: float = 0.3
 
     def __post_init__(self) -> None:
         require_at_least('pose_track', 1, capacity=self.capacity)
         require_positive('pose_track', max_scale_step=self.max_scale_step)
-        require_at_least('pose_track', 0.0, scale_deadband=self.scale_deadband)
+        require_at_least('pose_track', 0.0, scale_deadband=self.scale_deadband,
+                         correction_blend_s=self.correction_blend_s)
         if not self.scale_deadband < self.max_scale_step < 1.0:
             raise ConfigError(f'pose_track: need scale_deadband < max_scale_step < 1, got '
                               f'{self.scale_deadband} and {self.max_scale_step}')

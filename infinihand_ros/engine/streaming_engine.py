@@ -78,8 +78,9 @@ class StreamingEngine:
         self._accepted_stamp: int | None = None  # last stamp of a block the model accepted
         self._source_size: tuple[int, int] | None = None  # (width, height) of the stream
         ba = self.config.bundle_adjustment
-        self.pose_track = PoseTrack(self.config.pose_track, self.config.metric_scale,
-                                    0.0 if ba is None else ba.corrections.blend_s)
+        blend_s = (self.config.pose_track.correction_blend_s if ba is None
+                   else ba.corrections.blend_s)
+        self.pose_track = PoseTrack(self.config.pose_track, self.config.metric_scale, blend_s)
         self._ba = None if ba is None else BundleAdjustmentStage(ba)
 
     @property

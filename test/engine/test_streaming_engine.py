@@ -11,6 +11,7 @@ from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
+from infinihand_ros.engine.pose_track import PoseTrackConfig
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
@@ -88,6 +89,22 @@ def test_bad_frames_raise_and_leave_the_stream_intact(model, frames: list) -> No
     assert [r.frame_index for r in results] == [0, 1, 2, 3]
     for a, b in zip(clean, results):
         np.testing.assert_allclose(a.camera_pose.matrix(), b.camera_pose.matrix(), atol=1e-6)
+
+
+def test_external_corrections_blend_over_the_configured_time(model) -> None:
+    """Without in-process BA, corrections from outside (the BA node) blend over
+    ``pose_track.correction_blend_s``: half of it after a correction, half the step is applied.
+    """
+    config = replace(CONFIG, pose_track=PoseTrackConfig(correction_blend_s=0.4))
+    with StreamingEngine(config, model) as engine:
+        track = engine.pose_track
+        track.add(0, 0, np.eye(4))
+        shifted = np.eye(4)
+        shifted[0, 3] = 0.1
+        track.update_corrections(np.array([0]), shifted[None], np.eye(4)[None])
+        track.best(0)  # the live blend starts at the first frame after the correction
+        track.add(1, 200_000_000, np.eye(4))
+        assert track.best(1).camera_pose.translation[0] == pytest.approx(0.05, abs=1e-6)
 
 
 def test_reset_starts_a_new_sequence(model, frames: list) -> None:
