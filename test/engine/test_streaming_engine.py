@@ -92,8 +92,9 @@ def test_bad_frames_raise_and_leave_the_stream_intact(model, frames: list) -> No
 
 
 def test_external_corrections_blend_over_the_configured_time(model) -> None:
-    """Without in-process BA, corrections from outside (the BA node) blend over
-    ``pose_track.correction_blend_s``: half of it after a correction, half the step is applied.
+    """Without in-process BA, outside corrections blend in over ``correction_blend_s``.
+
+    Half of that time after a correction (from the BA node), half of its step is applied.
     """
     config = replace(CONFIG, pose_track=PoseTrackConfig(correction_blend_s=0.4))
     with StreamingEngine(config, model) as engine:

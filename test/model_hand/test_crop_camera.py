@@ -57,7 +57,12 @@ def test_warped_image_shows_the_projected_joints(synth_frame: SynthFrame, flippe
     grid = pixels_to_normalized(crop_px, CROP, CROP)[:, None]
     read = F.grid_sample(crops, grid, align_corners=False)[:, :, 0].transpose(1, 2)
     image_px = np.stack([hand.joints_2d for hand in synth_frame.hands])
-    np.testing.assert_allclose(read.numpy(), image_px, atol=0.02)
+    # Joints outside the crop or the image (fingers past the image border) read padding.
+    inside = ((grid[:, 0].abs() < 0.98).all(dim=-1).numpy()
+              & (image_px >= 0).all(axis=-1) & (image_px[..., 0] < width - 1)
+              & (image_px[..., 1] < height - 1))
+    assert inside.sum() >= 30
+    np.testing.assert_allclose(read.numpy()[inside], image_px[inside], atol=0.02)
 
 
 def test_box_centre_is_the_crop_centre_and_the_box_fits(synth_frame: SynthFrame) -> None:
