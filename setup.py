@@ -38,6 +38,7 @@ setup(
             f'bundle_adjustment = {PACKAGE_NAME}.ros.bundle_adjustment_main:main',
             f'bag_to_dataset = {PACKAGE_NAME}.convert.cli:console_main',
             f'build_corpus = {PACKAGE_NAME}.data.corpus_cli:main',
+            f'live_demo = {PACKAGE_NAME}.ros.live_demo:main',
         ],
     },
 )

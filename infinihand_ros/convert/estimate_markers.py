@@ -1,9 +1,9 @@
 """Foxglove / RViz markers of the bag of estimates: hand skeletons and the camera path.
 
-The content is the estimator node's (``ros.markers``: left blue, right orange, the 20 bones as a
+The content is the estimator node's (``vis.markers``: left blue, right orange, the 20 bones as a
 ``LINE_LIST`` and the 21 joints as a ``SPHERE_LIST`` per hand, DELETE markers for a hand not
 placed in the world, the camera path as a grey ``LINE_STRIP``), so a converted episode and a live
-run look the same. ``ros.markers`` and ``ros.frame_outputs`` are plain numpy (no rclpy); this
+run look the same. ``vis.markers`` and ``vis.output_fields`` are plain numpy (no rclpy); this
 module turns their descriptions into rosbags ``visualization_msgs/msg/MarkerArray`` messages.
 """
 
@@ -18,13 +18,13 @@ from infinihand_ros.bag.typestore import POSE_MSG
 from infinihand_ros.bag.typestore import QUATERNION_MSG
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.hand_conventions import SIDES
-from infinihand_ros.ros.frame_outputs import hand_output
-from infinihand_ros.ros.markers import hand_markers
-from infinihand_ros.ros.markers import LINE_LIST
-from infinihand_ros.ros.markers import LINE_STRIP
-from infinihand_ros.ros.markers import MarkerSpec
-from infinihand_ros.ros.markers import path_marker
-from infinihand_ros.ros.markers import SPHERE_LIST
+from infinihand_ros.vis.markers import hand_markers
+from infinihand_ros.vis.markers import LINE_LIST
+from infinihand_ros.vis.markers import LINE_STRIP
+from infinihand_ros.vis.markers import MarkerSpec
+from infinihand_ros.vis.markers import path_marker
+from infinihand_ros.vis.markers import SPHERE_LIST
+from infinihand_ros.vis.output_fields import hand_output
 import numpy as np
 from rosbags.typesys.store import Typestore
 

@@ -25,7 +25,6 @@ from infinihand_ros.ros.bundle_adjustment_session import BundleAdjustmentSession
 from infinihand_ros.ros.diagnostics_report import DiagnosticReport
 from infinihand_ros.ros.estimator_statistics import OK
 from infinihand_ros.ros.estimator_statistics import WARN
-from infinihand_ros.ros.frame_outputs import PoseFields
 from infinihand_ros.ros.keyframe_assembly import KeyframeAssembler
 from infinihand_ros.ros.keyframe_msgs import Corrections
 from infinihand_ros.ros.keyframe_msgs import corrections_msg
@@ -38,6 +37,7 @@ from infinihand_ros.ros.keyframe_msgs import STATE_KEY
 from infinihand_ros.ros.keyframe_msgs import STATUS_TOPIC
 from infinihand_ros.ros.output_publishers import LATCHED_QOS
 from infinihand_ros.ros.parameter_declaration import declare_parameters
+from infinihand_ros.vis.output_fields import PoseFields
 from nav_msgs.msg import Path
 from rclpy.node import Node
 

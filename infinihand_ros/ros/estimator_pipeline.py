@@ -24,13 +24,13 @@ from infinihand_ros.ros.camera_path import CameraPath
 from infinihand_ros.ros.estimator_config import EstimatorConfig
 from infinihand_ros.ros.frame_outputs import frame_output
 from infinihand_ros.ros.frame_outputs import FrameOutput
-from infinihand_ros.ros.frame_outputs import PoseFields
 from infinihand_ros.ros.hand_identity import HandIdentityTracker
 from infinihand_ros.ros.hand_smoothing import HandSmoother
 from infinihand_ros.ros.keyframe_export import apply_corrections
 from infinihand_ros.ros.keyframe_export import keyframe_for_ba
 from infinihand_ros.ros.shape_consensus import reshape_hand
 from infinihand_ros.ros.shape_consensus import ShapeConsensus
+from infinihand_ros.vis.output_fields import PoseFields
 import numpy as np
 
 #: Most source images kept for results still to come (more than any engine block holds).

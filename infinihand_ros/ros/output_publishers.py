@@ -13,10 +13,10 @@ from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.estimator_config import OutputSwitches
 from infinihand_ros.ros.frame_outputs import FrameOutput
-from infinihand_ros.ros.frame_outputs import PoseFields
-from infinihand_ros.ros.markers import hand_markers
-from infinihand_ros.ros.markers import MarkerSpec
-from infinihand_ros.ros.markers import path_marker
+from infinihand_ros.vis.markers import hand_markers
+from infinihand_ros.vis.markers import MarkerSpec
+from infinihand_ros.vis.markers import path_marker
+from infinihand_ros.vis.output_fields import PoseFields
 from nav_msgs.msg import Path
 import numpy as np
 from rclpy.node import Node

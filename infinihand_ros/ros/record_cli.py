@@ -3,9 +3,9 @@
 Messages are taken serialized (CDR) from rclpy and written unchanged, so every header keeps its
 stamp; the bag's log time is the receive time on the node clock, as rosbag2 records it. Each
 topic is subscribed once its type is discovered, with the QoS its publishers offer (reliable
-and transient-local when all of them are, so latched topics are caught too). SIGINT / SIGTERM
-(or ``--duration``) end the recording and the bag is closed, with everything received in it.
-Exit 0 when done, 2 for bad arguments.
+and transient-local when all of them are, so latched topics are caught too), and logged
+(``recording TOPIC (TYPE)``). SIGINT / SIGTERM (or ``--duration``) end the recording and the
+bag is closed, with everything received in it. Exit 0 when done, 2 for bad arguments.
 """
 
 import argparse
@@ -34,6 +34,8 @@ ROSBAG_VERSION: Final = 9
 #: How often topics not yet discovered are looked for, s.
 DISCOVERY_PERIOD_S: Final = 0.2
 RECORD_DEPTH: Final = 100
+#: Logged once per topic when its subscription is made.
+RECORDING: Final = 'recording'
 
 
 @dataclass(frozen=True)
@@ -108,6 +110,7 @@ class Recorder:
                 cls, topic, lambda data, t=topic, c=connection: self._write(t, c, data),
                 matching_qos(self.node, topic), raw=True))
             self.pending.remove(topic)
+            self.node.get_logger().info(f'{RECORDING} {topic} ({msgtype})')
 
     def _write(self, topic: str, connection: Any, data: bytes) -> None:
         """Write one serialized message at the receive time."""

@@ -4,10 +4,11 @@ Messages go out as recorded (serialized CDR, so every header keeps its original 
 by the bag's log times: ``--rate 1`` real time, ``--rate N`` N times faster, ``--rate 0`` as fast
 as publishing goes. ``--clock`` publishes ``/clock`` (the bag time) before each message, for
 subscribers with ``use_sim_time``. ``--topics`` selects topics, ``--remap OLD:=NEW`` renames
-them, ``--loop`` plays again and again, and ``--wait-for-subscribers S`` waits up to S seconds
-for every topic to have a subscriber before starting. Topics whose message type has no Python
-package here (our own ``infinihand_msgs``) are skipped with a note. Exit 0 when done or on
-SIGINT / SIGTERM, 2 for bad arguments or an unreadable bag.
+them, ``--loop`` plays again and again, ``--wait-for-subscribers S`` waits up to S seconds
+for every topic to have a subscriber before starting, ``--delay S`` sleeps S seconds more and
+``--playback-duration S`` plays only the first S seconds of bag time (as ``ros2 bag play``).
+Topics whose message type has no Python package here (our own ``infinihand_msgs``) are skipped
+with a note. Exit 0 when done or on SIGINT / SIGTERM, 2 for bad arguments or an unreadable bag.
 """
 
 import argparse
@@ -49,6 +50,8 @@ class ReplayOptions:
     topics: tuple[str, ...]
     remap: dict[str, str]
     wait_for_subscribers_s: float
+    delay_s: float = 0.0
+    duration_s: float = 0.0
 
 
 def parse_args(argv: list[str]) -> ReplayOptions:
@@ -64,11 +67,18 @@ def parse_args(argv: list[str]) -> ReplayOptions:
                         help='publish topic OLD as NEW')
     parser.add_argument('--wait-for-subscribers', type=float, default=0.0, metavar='S',
                         help='wait up to S seconds for every topic to have a subscriber')
+    parser.add_argument('--delay', type=float, default=0.0, metavar='S',
+                        help='sleep S seconds before playing (after the wait for subscribers)')
+    parser.add_argument('--playback-duration', type=float, default=0.0, metavar='S',
+                        help='play only the first S seconds of bag time (0: all of it)')
     args = parser.parse_args(argv)
     if not args.rate >= 0.0:
         parser.error(f'--rate must be >= 0, got {args.rate}')
     if not args.wait_for_subscribers >= 0.0:
         parser.error(f'--wait-for-subscribers must be >= 0, got {args.wait_for_subscribers}')
+    for name, value in (('--delay', args.delay), ('--playback-duration', args.playback_duration)):
+        if not value >= 0.0:
+            parser.error(f'{name} must be >= 0, got {value}')
     if not args.bag.is_dir():
         parser.error(f'bag {args.bag} is not a directory; pass a rosbag2 directory')
     remap = {}
@@ -78,7 +88,7 @@ def parse_args(argv: list[str]) -> ReplayOptions:
             parser.error(f'--remap {rule!r}: write OLD:=NEW')
         remap[old] = new
     return ReplayOptions(args.bag, args.rate, args.clock, args.loop, tuple(args.topics), remap,
-                         args.wait_for_subscribers)
+                         args.wait_for_subscribers, args.delay, args.playback_duration)
 
 
 def message_class(msgtype: str) -> type | None:
@@ -127,8 +137,11 @@ class Replayer:
             if not rclpy.ok():
                 break
             start_bag = log_time if start_bag is None else start_bag
+            elapsed_s = (log_time - start_bag) / NS_PER_S
+            if self.options.duration_s and elapsed_s >= self.options.duration_s:
+                break
             if self.options.rate > 0:
-                due = start_wall + (log_time - start_bag) / NS_PER_S / self.options.rate
+                due = start_wall + elapsed_s / self.options.rate
                 time.sleep(max(0.0, due - time.monotonic()))
             if self.clock is not None:
                 sec, nanosec = divmod(log_time, int(NS_PER_S))
@@ -148,6 +161,7 @@ def replay(options: ReplayOptions) -> int:
         with AnyReader([options.bag], default_typestore=build_typestore()) as reader:
             replayer = Replayer(node, reader, options)
             replayer.wait_for_subscribers()
+            time.sleep(options.delay_s)
             while rclpy.ok():
                 total += replayer.play_once()
                 if not options.loop:

@@ -16,9 +16,9 @@ from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.ros.markers import BONES
-from infinihand_ros.ros.markers import PATH_COLOUR
-from infinihand_ros.ros.markers import SIDE_COLOURS
+from infinihand_ros.vis.markers import BONES
+from infinihand_ros.vis.markers import PATH_COLOUR
+from infinihand_ros.vis.markers import SIDE_COLOURS
 import numpy as np
 import pytest
 

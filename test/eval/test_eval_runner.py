@@ -6,10 +6,12 @@ from pathlib import Path
 
 import cv2
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.eval import baselines
 from infinihand_ros.eval.cli import main
+from infinihand_ros.eval.cli import mean_pose_joints
 from infinihand_ros.eval.prediction_files import read_predictions
 from infinihand_ros.eval.prediction_files import write_predictions
 from infinihand_ros.eval.runner import aggregate
@@ -102,6 +104,16 @@ def test_missing_results_and_hands_leave_the_scored_pairs(sequence: EvalSequence
     assert aggregate([evaluation]).ours['Recall'] < 1.0
 
 
+def test_without_a_training_mean_the_sequences_own_mean_is_used(
+        sequence: EvalSequence) -> None:
+    joints, source = mean_pose_joints(None, EngineConfig(), [sequence])
+    assert source == 'evaluated sequences'
+    truth = sequence.truth
+    poses = [truth.hand_pose[truth.visible[:, side], side] for side in (0, 1)]
+    expected = baselines.mean_pose_joints(baselines.mean_articulation(poses, [0, 1]))
+    np.testing.assert_allclose(joints, expected)
+
+
 def test_mean_articulation_mirrors_left_hands() -> None:
     rng = np.random.default_rng(0)
     pose = rng.normal(scale=0.3, size=(15, 3))
@@ -150,7 +162,7 @@ def test_cli_json_line_files_and_usage_errors(synth_output: Path, tmp_path: Path
     assert set(report) == {'ours', 'baselines', 'sequences', 'settings'}
     assert set(report['baselines']) == {'static-camera', 'mean-hand', 'mean-pose'}
     assert report['sequences'][0]['name'] == 'seq_31'
-    assert report['settings']['mean_pose'] == 'evaluated sequences'
+    assert report['settings']['mean_pose'].startswith('training set (')  # the bundled model's
     assert read_predictions(out / 'seq_31.npz')['T_world_cam'].shape == (FRAMES, 4, 4)
     for name in ('seq_31_top_view.png', 'seq_31_errors.png'):
         image = cv2.imread(str(out / name))

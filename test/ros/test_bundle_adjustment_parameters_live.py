@@ -3,9 +3,9 @@
 from pathlib import Path
 import subprocess
 
-from live_processes import fresh_domain_id
+from infinihand_ros.ros.node_processes import fresh_domain_id
+from infinihand_ros.ros.node_processes import ros_env
 from live_processes import LIB
-from live_processes import ros_env
 import pytest
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

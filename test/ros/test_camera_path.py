@@ -1,7 +1,7 @@
 """The bounded, refreshable camera path (ros/camera_path.py)."""
 
 from infinihand_ros.ros.camera_path import CameraPath
-from infinihand_ros.ros.frame_outputs import PoseFields
+from infinihand_ros.vis.output_fields import PoseFields
 import numpy as np
 
 

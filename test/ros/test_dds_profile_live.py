@@ -3,10 +3,10 @@
 from pathlib import Path
 import time
 
-from live_processes import fresh_domain_id
-from live_processes import interrupt
+from infinihand_ros.ros.node_processes import fresh_domain_id
+from infinihand_ros.ros.node_processes import interrupt
+from infinihand_ros.ros.node_processes import ros_env
 from live_processes import LIB
-from live_processes import ros_env
 from live_processes import running
 import pytest
 

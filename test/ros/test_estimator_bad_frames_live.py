@@ -4,12 +4,12 @@ from pathlib import Path
 import signal
 import time
 
-from live_processes import fresh_domain_id
-from live_processes import interrupt
+from infinihand_ros.ros.node_processes import fresh_domain_id
+from infinihand_ros.ros.node_processes import interrupt
+from infinihand_ros.ros.node_processes import ros_env
+from infinihand_ros.ros.node_processes import wait_for_text
 from live_processes import LIB
-from live_processes import ros_env
 from live_processes import running
-from live_processes import wait_for_text
 import numpy as np
 import pytest
 

@@ -9,17 +9,17 @@ from pathlib import Path
 import time
 
 from infinihand_ros.bag.reader import BagReader
-from live_processes import fresh_domain_id
-from live_processes import interrupt
+from infinihand_ros.ros.node_processes import fresh_domain_id
+from infinihand_ros.ros.node_processes import interrupt
+from infinihand_ros.ros.node_processes import ros_env
+from infinihand_ros.ros.node_processes import wait_for_text
 from live_processes import LIB
 from live_processes import NODE
 from live_processes import REMAPS
-from live_processes import ros_env
 from live_processes import running
 from live_processes import SAMPLE_BAG
 from live_processes import SHARE
 from live_processes import start
-from live_processes import wait_for_text
 import pytest
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]

@@ -18,17 +18,17 @@ from infinihand_ros.ros.engine_setup import engine_config_for
 from infinihand_ros.ros.estimator_config import estimator_config_from_parameters
 from infinihand_ros.ros.estimator_config import load_estimator_defaults
 from infinihand_ros.ros.estimator_pipeline import EstimatorPipeline
-from live_processes import fresh_domain_id
-from live_processes import interrupt
+from infinihand_ros.ros.node_processes import fresh_domain_id
+from infinihand_ros.ros.node_processes import interrupt
+from infinihand_ros.ros.node_processes import ros_env
+from infinihand_ros.ros.node_processes import wait_for_text
 from live_processes import LIB
 from live_processes import NODE
 from live_processes import REMAPS
-from live_processes import ros_env
 from live_processes import running
 from live_processes import SAMPLE_BAG
 from live_processes import SHARE
 from live_processes import start
-from live_processes import wait_for_text
 import numpy as np
 import pytest
 

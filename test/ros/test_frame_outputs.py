@@ -1,11 +1,11 @@
-"""Engine results to output-message fields (ros/frame_outputs.py), worked out by hand."""
+"""Engine results to output fields (ros/frame_outputs.py, vis/output_fields.py), by hand."""
 
 from infinihand_ros.core import geometry
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.ros.frame_outputs import frame_output
-from infinihand_ros.ros.frame_outputs import hand_output
+from infinihand_ros.vis.output_fields import hand_output
 import numpy as np
 from ros_builders import make_hand
 from ros_builders import make_result

@@ -2,9 +2,9 @@
 
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.ros.diagnostics_report import DiagnosticReport
-from infinihand_ros.ros.frame_outputs import hand_output
-from infinihand_ros.ros.frame_outputs import PoseFields
-from infinihand_ros.ros.markers import hand_markers
+from infinihand_ros.vis.markers import hand_markers
+from infinihand_ros.vis.output_fields import hand_output
+from infinihand_ros.vis.output_fields import PoseFields
 import numpy as np
 import pytest
 from ros_builders import INTRINSICS

@@ -17,11 +17,16 @@ def test_replay_options() -> None:
                                      '--topics', '/a', '--remap', '/a:=/b'])
     assert (options.rate, options.clock, options.loop) == (0.0, True, True)
     assert options.topics == ('/a',) and options.remap == {'/a': '/b'}
+    options = replay_cli.parse_args([str(SAMPLE_BAG), '--delay', '1.5',
+                                     '--playback-duration', '4'])
+    assert (options.delay_s, options.duration_s) == (1.5, 4.0)
 
 
 @pytest.mark.parametrize('args,message', [
     (['--rate', '-1'], '--rate must be >= 0'),
     (['--remap', '/a=/b'], 'write OLD:=NEW'),
+    (['--delay', '-1'], '--delay must be >= 0'),
+    (['--playback-duration', 'nan'], '--playback-duration must be >= 0'),
 ])
 def test_replay_bad_arguments_exit_2(args: list[str], message: str,
                                      capsys: pytest.CaptureFixture) -> None:

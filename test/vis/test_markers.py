@@ -1,17 +1,25 @@
-"""Skeleton and path markers (ros/markers.py)."""
+"""Skeleton and path markers (vis/markers.py)."""
 
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.ros.frame_outputs import hand_output
-from infinihand_ros.ros.markers import BONES
-from infinihand_ros.ros.markers import hand_markers
-from infinihand_ros.ros.markers import LINE_LIST
-from infinihand_ros.ros.markers import path_marker
-from infinihand_ros.ros.markers import SIDE_COLOURS
-from infinihand_ros.ros.markers import SPHERE_LIST
+from infinihand_ros.vis.markers import BONES
+from infinihand_ros.vis.markers import hand_markers
+from infinihand_ros.vis.markers import LINE_LIST
+from infinihand_ros.vis.markers import path_marker
+from infinihand_ros.vis.markers import SIDE_COLOURS
+from infinihand_ros.vis.markers import SPHERE_LIST
+from infinihand_ros.vis.output_fields import HandOutput
+from infinihand_ros.vis.output_fields import PoseFields
 import numpy as np
-from ros_builders import make_hand
-from ros_builders import PALM_JOINTS
+
+#: 21 distinct world joints: joint j at (3j, 3j + 1, 3j + 2), metres.
+JOINTS = np.arange(63.0).reshape(21, 3)
+
+
+def _seen_hand(side: int) -> HandOutput:
+    """Return a seen hand at ``JOINTS`` (wrist-frame fields are not drawn)."""
+    return HandOutput(side, 0.9, JOINTS.copy(), np.zeros((21, 3)),
+                      PoseFields(JOINTS[0], np.array([0.0, 0.0, 0.0, 1.0])))
 
 
 def test_bones_pair_each_joint_with_its_parent() -> None:
@@ -21,13 +29,13 @@ def test_bones_pair_each_joint_with_its_parent() -> None:
 
 
 def test_seen_hand_gives_bones_and_joints_in_its_colour() -> None:
-    """A LINE_LIST of 40 points (pairs) and a SPHERE_LIST of the 21 joints."""
-    lines, spheres = hand_markers(RIGHT, hand_output(make_hand(RIGHT)))
+    """A LINE_LIST of 40 points (child, parent pairs) and a SPHERE_LIST of the 21 joints."""
+    lines, spheres = hand_markers(RIGHT, _seen_hand(RIGHT))
     assert (lines.kind, spheres.kind) == (LINE_LIST, SPHERE_LIST)
     assert lines.points.shape == (40, 3)
-    np.testing.assert_array_equal(lines.points[8], PALM_JOINTS[5])  # bone (5, 0): 5th pair
-    np.testing.assert_array_equal(lines.points[9], PALM_JOINTS[0])
-    np.testing.assert_array_equal(spheres.points, PALM_JOINTS)
+    np.testing.assert_array_equal(lines.points[8], JOINTS[5])  # bone (5, 0): the 5th pair
+    np.testing.assert_array_equal(lines.points[9], JOINTS[0])
+    np.testing.assert_array_equal(spheres.points, JOINTS)
     assert lines.rgba == SIDE_COLOURS[RIGHT] != SIDE_COLOURS[LEFT]
     assert not lines.delete and lines.namespace == 'right'
 

@@ -1,0 +1,1 @@
+"""Visual outputs as plain numpy: per-hand output fields and marker descriptions (no rclpy)."""
