@@ -25,10 +25,12 @@ venv: $(VENV_STAMP)
 
 build: $(BUILD_STAMP)
 
-$(VENV_STAMP): requirements.txt
+$(VENV_STAMP): requirements.txt requirements-nodeps.txt
 	@test -x $(VENV)/bin/python || $(PYTHON) -m venv $(VENV)
 	$(VENV)/bin/python -m pip install --quiet --disable-pip-version-check -r requirements.txt
-	cp requirements.txt $(VENV_STAMP)
+	$(VENV)/bin/python -m pip install --quiet --disable-pip-version-check --no-deps \
+	  -r requirements-nodeps.txt
+	cat requirements.txt requirements-nodeps.txt > $(VENV_STAMP)
 
 $(BUILD_STAMP): $(VENV_STAMP) setup.py setup.cfg package.xml $(wildcard config/* msg_schemas/msg/* data/*)
 	$(ENV) colcon build --base-paths . --symlink-install --event-handlers console_cohesion-

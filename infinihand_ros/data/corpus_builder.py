@@ -22,6 +22,7 @@ import zlib
 
 from infinihand_ros.core.atomic_io import atomic_write_bytes
 from infinihand_ros.core.config import require_at_least
+from infinihand_ros.data.adapters.synthetic import SOURCE as SYNTHETIC_SOURCE
 from infinihand_ros.data.cleaning import clean_sequence
 from infinihand_ros.data.cleaning import CleaningConfig
 from infinihand_ros.data.cleaning import KEEP
@@ -44,6 +45,9 @@ MANIFEST_VERSION: Final = 1
 SHARDS_DIR: Final = 'shards'
 DECISIONS_DIR: Final = 'decisions'
 NOT_CLEANED: Final = 'not cleaned (no 2D source)'
+EXACT: Final = 'exact ground truth (not cleaned)'
+#: Sources whose labels are exact by construction: cleaning could only remove good data.
+EXACT_SOURCES: Final = (SYNTHETIC_SOURCE,)
 
 
 @dataclass(frozen=True)
@@ -86,9 +90,11 @@ def shard_name(key: str, num_shards: int) -> str:
 def _decide(prepared: PreparedSequence, source: KeypointSource | None,
             config: CleaningConfig) -> dict:
     """Clean one prepared sequence (or record that no source was given)."""
+    sequence, arrays = prepared.sequence, prepared.annotations
+    if sequence.source in EXACT_SOURCES:
+        return {'decision': KEEP, 'reason': EXACT}
     if source is None:
         return {'decision': KEEP, 'reason': NOT_CLEANED}
-    sequence, arrays = prepared.sequence, prepared.annotations
     labels = SequenceLabels(sequence.sequence_id, arrays['joints_2d'], arrays['joints_cam'],
                             arrays['box_xyxy'], arrays['visible'])
     detections = [source.detect(sequence.read_rgb(i), i) for i in range(sequence.num_frames)]

@@ -37,6 +37,8 @@ class CorpusSequence:
             (T, 2, 15, 3), 'betas' (T, 2, 10), 'transl' (T, 2, 3)), or None to fit them.
         read_rgb: loader of the RGB frames.
         read_labels: loader of annotated hand labels, or None to render masks.
+        hand_confidence: (T, 2) confidence of each hand-frame's label in [0, 1] (pseudo-labels),
+            or None for annotated datasets (stored as 1 where a hand is present).
 
     """
 
@@ -53,6 +55,7 @@ class CorpusSequence:
     mano_cam: dict[str, np.ndarray] | None
     read_rgb: RgbLoader
     read_labels: LabelLoader | None = None
+    hand_confidence: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         frames = len(self.timestamp_ns)
@@ -60,6 +63,8 @@ class CorpusSequence:
                   'hand_present': (self.hand_present, (frames, 2)),
                   'joints_cam': (self.joints_cam, (frames, 2, 21, 3)),
                   'joint_valid': (self.joint_valid, (frames, 2, 21))}
+        if self.hand_confidence is not None:
+            shapes['hand_confidence'] = (self.hand_confidence, (frames, 2))
         if self.T_world_cam is not None:
             shapes['T_world_cam'] = (self.T_world_cam, (frames, 4, 4))
         for name, (value, shape) in shapes.items():

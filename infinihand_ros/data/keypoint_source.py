@@ -24,6 +24,8 @@ class Detection2D:
         joints_2d: (21, 2) pixels, OpenPose order.
         joint_confidence: (21,) scores in [0, 1].
         confidence: detection score in [0, 1].
+        joints_metric: (21, 3) metric joints in a hand-centred frame whose axes follow the
+            image's (metres), when the source estimates them, else None.
 
     """
 
@@ -31,6 +33,7 @@ class Detection2D:
     joints_2d: np.ndarray
     joint_confidence: np.ndarray
     confidence: float
+    joints_metric: np.ndarray | None = None
 
 
 class KeypointSource(Protocol):

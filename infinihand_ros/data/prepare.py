@@ -4,7 +4,8 @@ Paper Sec. 3.1: MANO is fitted to the 3D keypoints where a dataset has no MANO, 
 are rendered from the hand surfaces and tight boxes taken from them, and sequences with camera
 trajectories get their hands in the shared world frame. The result holds the annotation arrays
 of the sample format (``data/sample_format.py``) plus ``joint_valid`` (T, 2, 21) and
-``mano_fit_error_mm`` (T, 2) (NaN where MANO came from the dataset).
+``mano_fit_error_mm`` (T, 2) (NaN where MANO came from the dataset) and ``hand_confidence``
+(T, 2) (the label's confidence: 1 for annotated hands, the detection score for pseudo-labels).
 """
 
 from dataclasses import dataclass
@@ -141,7 +142,9 @@ def complete_sequence(sequence: CorpusSequence, models: tuple[HandModel, HandMod
            'K': np.asarray(sequence.K, np.float64), 'hand_present': present,
            'visible': visible, 'joints_cam': joints_cam, 'joint_valid': valid,
            'joints_2d': geometry.project_points(joints_cam, sequence.K[:, None, None]),
-           'box_xyxy': boxes, 'mano_fit_error_mm': fit_errors}
+           'box_xyxy': boxes, 'mano_fit_error_mm': fit_errors,
+           'hand_confidence': present.astype(np.float64) if sequence.hand_confidence is None
+           else np.asarray(sequence.hand_confidence, np.float64)}
     for name in _MANO_SHAPES:
         out[f'mano_cam_{name}'] = np.where(
             present.reshape(frames, 2, *([1] * len(_MANO_SHAPES[name]))), mano[name], 0.0)
