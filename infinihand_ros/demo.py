@@ -5,7 +5,9 @@ The demo reads the bundled sample bag, regenerates its sequence with the synthet
 earlier demo output) and checks that the fresh ground truth equals the bag's. Then it streams
 the bag's frames through the engine with the embedded trained model and evaluates the
 estimates against the bag's ground truth (``eval/``): it prints the evaluation tables (ours
-beside the baselines) and writes the prediction file and the plots into ``--out``/eval.
+beside the baselines) and writes the prediction file and the plots into ``--out``/eval. Then
+the live path (``ros/live_demo.py``): the bag replayed at 10 Hz into the installed estimator
+node, its outputs recorded and evaluated the same way, into ``--out``/live.
 """
 
 import argparse
@@ -31,6 +33,8 @@ from infinihand_ros.eval.cli import save_outputs
 from infinihand_ros.eval.report import markdown_tables
 from infinihand_ros.eval.runner import evaluate
 from infinihand_ros.eval.sequences import open_eval_sequence
+from infinihand_ros.ros import live_demo
+from infinihand_ros.ros.live_demo import LiveDemoOptions
 from infinihand_ros.synth import cli
 from infinihand_ros.synth.sample_bag import load_sample_settings
 from infinihand_ros.synth.sample_bag import sample_bag_path
@@ -48,6 +52,9 @@ OUTPUT_MARKER: Final = '.infinihand_demo'
 ENGINE_CONFIG_FILE: Final = 'engine_config.yaml'
 #: Folder of ``--out`` with the evaluation's prediction file and plots.
 EVAL_DIR: Final = 'eval'
+#: Folder of ``--out`` with the live run (recording, logs, its evaluation), and its replay rate.
+LIVE_DIR: Final = 'live'
+LIVE_RATE_HZ: Final = 10.0
 
 
 def read_ground_truth(bag: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -130,6 +137,8 @@ def run(out: Path, bag: Path) -> str:
         (work / ENGINE_CONFIG_FILE).write_text(dump_config(engine_config, ENGINE_SECTION),
                                                encoding='utf-8')
         evaluation = evaluate_bag(bag, engine_config, work / EVAL_DIR)
+        live = live_demo.run(LiveDemoOptions(work / LIVE_DIR, LIVE_RATE_HZ, 'none', 0.0), bag)
+        live = live.replace(str(work), str(out))  # name the final paths, not the staging ones
     if fresh_cameras.shape != cameras.shape:
         raise InfiniHandError(f'{bag} holds {len(cameras)} frames but its settings give '
                               f'{len(fresh_cameras)}; regenerate it with '
@@ -156,6 +165,10 @@ def run(out: Path, bag: Path) -> str:
         '',
         evaluation,
         f'Prediction file and plots: {out / EVAL_DIR}',
+        '',
+        f'Live path (replay at {LIVE_RATE_HZ:g} Hz -> estimator node -> record), in '
+        f'{out / LIVE_DIR}:',
+        live,
     ]
     return '\n'.join(report)
 

@@ -27,6 +27,12 @@ def test_demo_regenerates_the_sample_bag_and_evaluates(tmp_path: Path,
     evaluated = out / demo.EVAL_DIR
     assert read_predictions(evaluated / 'sample_bag.npz')['T_world_cam'].shape == (150, 4, 4)
     assert (evaluated / 'sample_bag_top_view.png').stat().st_size > 0
+    # The live path: replay -> estimator node -> record, evaluated the same way.
+    assert 'Live estimator (bundle adjustment none' in report
+    assert '150 images replayed at 10 Hz' in report and '(150 received)' in report
+    assert report.count('**World space**') == 2
+    assert (out / demo.LIVE_DIR / 'eval' / 'sample_bag.npz').is_file()
+    assert str(out / demo.LIVE_DIR) in report and '/.demo' not in report
     assert not (out / 'stale.txt').exists()
     assert (out / demo.OUTPUT_MARKER).is_file()
     for name in (cli.FRAMES_PREVIEW, cli.TRAJECTORY_PREVIEW, cli.RESOLVED_CONFIG):
