@@ -1,8 +1,8 @@
 """``build_corpus``: public datasets, our own data and unlabeled bags into the unified corpus.
 
     build_corpus --out CORPUS [--synthetic DIR ...] [--lerobot DIR ...] [--dexycb DIR ...]
-                 [--ho3d DIR ...] [--egodex DIR ...] [--arctic DIR ...] [--from-bags BAG ...]
-                 [--keypoints mediapipe|none] [--config config/corpus.yaml]
+                 [--ho3d DIR ...] [--egodex DIR ...] [--arctic DIR ...] [--hot3d DIR ...]
+                 [--from-bags BAG ...] [--keypoints mediapipe|none] [--config config/corpus.yaml]
 
 Each dataset flag takes roots in that dataset's published layout (``data/adapters/``);
 ``--from-bags`` pseudo-labels unlabeled rosbag2 recordings with MediaPipe Hands

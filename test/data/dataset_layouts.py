@@ -4,8 +4,12 @@ Each builder writes a few frames of one dataset's layout from a known camera-fra
 (``data/synthetic_tracks.py``) so an adapter test can check the hand lands where it should.
 """
 
+import dataclasses
+import io
+import json
 from pathlib import Path
 import pickle
+import tarfile
 
 import av
 import cv2
@@ -21,6 +25,7 @@ from infinihand_ros.mano.mano_file import NUM_POSE_FEATURES
 from infinihand_ros.mano.mano_file import NUM_POSE_PARAMS
 from infinihand_ros.mano.mano_file import NUM_VERTICES
 import numpy as np
+from scipy.spatial.transform import Rotation
 import yaml
 
 WIDTH, HEIGHT = 64, 48
@@ -134,3 +139,97 @@ def egodex(root: Path, joints: np.ndarray, side: str, T_world_cam: np.ndarray) -
         data['transforms/leftIndexFingerMetacarpal'] = np.repeat(np.eye(4)[None], len(joints), 0)
     write_mp4(path.with_suffix('.mp4'), frames_rgb(len(joints)))
     return root
+
+
+#: HOT3D fixture camera: FISHEYE624 (fx, fy, cx, cy, 6 radial, 2 tangential, 4 thin prism), one
+#: radial term only, so the fixture can place pixels with the closed form below.
+HOT3D_SIZE = 160
+HOT3D_K1 = 0.05
+HOT3D_PARAMS = [60.0, 60.0, 79.5, 79.5, HOT3D_K1] + [0.0] * 11
+#: PCA coefficients that give the flat hand with ``hot3d_mano``'s mean pose.
+HOT3D_FLAT_THETAS = np.linspace(-1.0, 1.0, 15)
+
+
+def hot3d_mano(rng: np.random.Generator, side: int) -> ManoData:
+    """Fake MANO arrays whose mean pose is cancelled by ``HOT3D_FLAT_THETAS``."""
+    data = fake_mano(rng, side)
+    mean = -(HOT3D_FLAT_THETAS @ data.hands_components[:15])
+    return dataclasses.replace(data, hands_mean=mean)
+
+
+def hot3d_fisheye_pixel(point_cam: np.ndarray) -> np.ndarray:
+    """Pixel of a camera-frame point in the fixture's fisheye: c + f theta (1 + k1 theta^2)."""
+    x, y, z = point_cam
+    r = np.hypot(x, y)
+    theta = np.arctan2(r, z)
+    fx, fy, cx, cy = HOT3D_PARAMS[:4]
+    scale = theta * (1.0 + HOT3D_K1 * theta ** 2) / r
+    return np.array([cx + fx * x * scale, cy + fy * y * scale])
+
+
+def hot3d_hand(thetas: np.ndarray | None, wrist_xform: np.ndarray) -> dict:
+    """One side of ``hands.json``; ``thetas`` None leaves only the UmeTrack pose (MANO failed)."""
+    hand = {'umetrack_pose': {'joint_angles': [0.0] * 20, 'T_world_from_wrist': {
+        'quaternion_wxyz': [1.0, 0.0, 0.0, 0.0], 'translation_xyz': [0.0, 0.0, 0.0]}},
+        'boxes_amodal': {}, 'visibilities_modeled': {}}
+    if thetas is not None:
+        hand['mano_pose'] = {'thetas': [float(v) for v in thetas],
+                             'wrist_xform': [float(v) for v in wrist_xform]}
+    return hand
+
+
+def _se3_json(pose: np.ndarray) -> dict:
+    x, y, z, w = Rotation.from_matrix(pose[:3, :3]).as_quat()
+    return {'quaternion_wxyz': [float(w), float(x), float(y), float(z)],
+            'translation_xyz': [float(v) for v in pose[:3, 3]]}
+
+
+def hot3d_clip(root: Path, T_world_cam: np.ndarray, hands: list[dict | None],
+               betas: np.ndarray, dots_cam: np.ndarray | None = None, stream: str = '214-1',
+               as_tar: bool = True) -> Path:
+    """One HOT3D clip (``clip-000001.tar`` under ``root/train_aria``, or a folder).
+
+    ``hands`` is each frame's ``hands.json`` (None: no file); ``dots_cam`` (T, 3) camera-frame
+    points drawn as bright blobs where the fisheye sees them. Returns the clip's path.
+    """
+    members: dict[str, bytes] = {}
+    grid = np.stack(np.meshgrid(np.arange(HOT3D_SIZE), np.arange(HOT3D_SIZE)), axis=-1)
+    for index, pose in enumerate(T_world_cam):
+        key = f'{index:06d}'
+        calibration = {'label': 'camera-rgb', 'stream_id': stream, 'serial_number': '0',
+                       'image_width': HOT3D_SIZE, 'image_height': HOT3D_SIZE,
+                       'projection_model_type': 'CameraModelType.FISHEYE624',
+                       'projection_params': HOT3D_PARAMS,
+                       'T_device_from_camera': _se3_json(np.eye(4)), 'max_solid_angle': 1.5}
+        members[f'{key}.cameras.json'] = json.dumps(
+            {stream: {'calibration': calibration, 'T_world_from_camera': _se3_json(pose)}})
+        members[f'{key}.info.json'] = json.dumps(
+            {'device': 'Aria', 'image_timestamps_ns': {stream: 10**9 + index * 33_333_333}})
+        if hands[index] is not None:
+            members[f'{key}.hands.json'] = json.dumps(hands[index])
+        image = np.zeros((HOT3D_SIZE, HOT3D_SIZE), np.float64)
+        if dots_cam is not None:
+            spot = hot3d_fisheye_pixel(dots_cam[index])
+            image = 255.0 * np.exp(-((grid - spot) ** 2).sum(-1) / (2 * 1.5 ** 2))
+        gray = image.astype(np.uint8)
+        pixels = np.repeat(gray[..., None], 3, axis=-1) if stream == '214-1' else gray
+        _, jpeg = cv2.imencode('.jpg', pixels, [cv2.IMWRITE_JPEG_QUALITY, 98])
+        members[f'{key}.image_{stream}.jpg'] = jpeg.tobytes()
+    members['__hand_shapes.json__'] = json.dumps(
+        {'mano': [float(v) for v in betas], 'umetrack': {}})
+    folder = root / 'train_aria'
+    folder.mkdir(parents=True, exist_ok=True)
+    if not as_tar:
+        clip = folder / 'clip-000001'
+        clip.mkdir()
+        for name, data in members.items():
+            (clip / name).write_bytes(data.encode() if isinstance(data, str) else data)
+        return clip
+    clip = folder / 'clip-000001.tar'
+    with tarfile.open(clip, 'w') as tar:
+        for name, data in members.items():
+            raw = data.encode() if isinstance(data, str) else data
+            info = tarfile.TarInfo(name)
+            info.size = len(raw)
+            tar.addfile(info, io.BytesIO(raw))
+    return clip

@@ -16,6 +16,7 @@ from infinihand_ros.data.adapters.arctic import iter_arctic
 from infinihand_ros.data.adapters.dexycb import iter_dexycb
 from infinihand_ros.data.adapters.egodex import iter_egodex
 from infinihand_ros.data.adapters.ho3d import iter_ho3d
+from infinihand_ros.data.adapters.hot3d import iter_hot3d
 from infinihand_ros.data.adapters.lerobot_bags import iter_lerobot
 from infinihand_ros.data.adapters.synthetic import iter_synthetic
 from infinihand_ros.data.corpus_sequence import CorpusSequence
@@ -44,6 +45,13 @@ def _arctic(roots: list[Path], context: AdapterContext) -> Iterator[CorpusSequen
     return iter_arctic(roots, context.mano, context.keep_mano)
 
 
+def _hot3d(roots: list[Path], context: AdapterContext) -> Iterator[CorpusSequence]:
+    if context.mano is None:
+        raise InputError('HOT3D hands are MANO parameters (UmeTrack is not supported): set '
+                         'hand_model.mano_dir to the folder with MANO_RIGHT.pkl / MANO_LEFT.pkl')
+    return iter_hot3d(roots, context.mano, context.keep_mano)
+
+
 Adapter = Callable[[list[Path], AdapterContext], Iterator[CorpusSequence]]
 #: Dataset name -> adapter.
 ADAPTERS: Final = MappingProxyType({
@@ -53,4 +61,5 @@ ADAPTERS: Final = MappingProxyType({
     'ho3d': lambda roots, _: iter_ho3d(roots),
     'egodex': lambda roots, _: iter_egodex(roots),
     'arctic': _arctic,
+    'hot3d': _hot3d,
 })
