@@ -3,6 +3,7 @@
 import errno
 import json
 from pathlib import Path
+import shutil
 
 import av
 from convert_builders import BASE_NS
@@ -219,6 +220,29 @@ def test_video_input(tmp_path: Path) -> None:
     data = pq.read_table(output / 'data/chunk-000/file-000.parquet').to_pydict()
     assert data['source.stamp_ns'] == [0, 100_000_000, 200_000_000, 300_000_000]
     assert data['camera.intrinsics'][0] == [100, 100, 80, 60]
+
+
+@pytest.mark.slow
+def test_truncated_bag_fails_clearly_and_the_rest_converts(synth_bags: list[Path],
+                                                           tmp_path: Path) -> None:
+    """A bag cut off mid-file (a crashed recorder) names itself; the good bag still converts."""
+    truncated = tmp_path / 'truncated'
+    shutil.copytree(synth_bags[0], truncated)
+    for path in truncated.glob('*.mcap'):
+        with path.open('r+b') as handle:
+            handle.truncate(path.stat().st_size // 2)
+    output = tmp_path / 'dataset'
+    assert _convert([truncated, synth_bags[0]], output, tmp_path) == EXIT_FAILED
+    errors = {Path(r['source']).name: r['error'] for r in _report(output)
+              if r['status'] == 'failed'}
+    assert set(errors) == {'truncated'} and 'cannot be read' in errors['truncated']
+    assert _read_dataset(output)[0]['total_episodes'] == 1
+
+
+def test_unwritable_output_is_a_usage_error(synth_bags: list[Path], tmp_path: Path,
+                                            capsys: pytest.CaptureFixture) -> None:
+    assert _convert([synth_bags[0]], Path('/proc/no_dataset'), tmp_path) == EXIT_USAGE
+    assert '--output /proc/no_dataset' in capsys.readouterr().err
 
 
 def test_usage_errors(tmp_path: Path) -> None:
