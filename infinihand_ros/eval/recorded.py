@@ -193,14 +193,7 @@ def segment(sequence: EvalSequence, stamps: set[int]) -> EvalSequence:
 def recorded_predictions(run: RecordedRun, sequence: EvalSequence) -> Predictions:
     """Return the run's outputs as the runner's predictions, aligned with ``sequence``'s frames."""
     truth = sequence.truth
-    count = truth.num_frames
-    out = Predictions(
-        timestamp_ns=truth.timestamp_ns.copy(), has_result=np.zeros(count, bool),
-        T_world_cam=np.full((count, 4, 4), np.nan), hand_valid=np.zeros((count, 2), bool),
-        confidence=np.zeros((count, 2)), joints_cam=np.full((count, 2, NUM_JOINTS, 3), np.nan),
-        joints_world=np.full((count, 2, NUM_JOINTS, 3), np.nan),
-        rotation_cam=np.tile(np.eye(3), (count, 2, 1, 1)), box_xyxy=np.zeros((count, 2, 4)),
-        frames_per_s=output_rate_hz(run))
+    out = Predictions.empty(truth.timestamp_ns, output_rate_hz(run))
     for row, stamp in enumerate(int(s) for s in truth.timestamp_ns):
         T_world_cam = run.camera_poses.get(stamp)
         if T_world_cam is None:

@@ -63,6 +63,19 @@ class Predictions:
     box_xyxy: np.ndarray
     frames_per_s: float
 
+    @staticmethod
+    def empty(timestamp_ns: np.ndarray, frames_per_s: float) -> 'Predictions':
+        """Return predictions for these stamps with no result and no hand yet (filled in place)."""
+        count = len(timestamp_ns)
+        return Predictions(
+            timestamp_ns=np.array(timestamp_ns, dtype=np.int64), has_result=np.zeros(count, bool),
+            T_world_cam=np.full((count, 4, 4), np.nan), hand_valid=np.zeros((count, 2), bool),
+            confidence=np.zeros((count, 2)),
+            joints_cam=np.full((count, 2, NUM_JOINTS, 3), np.nan),
+            joints_world=np.full((count, 2, NUM_JOINTS, 3), np.nan),
+            rotation_cam=np.tile(np.eye(3), (count, 2, 1, 1)), box_xyxy=np.zeros((count, 2, 4)),
+            frames_per_s=frames_per_s)
+
 
 @dataclass(frozen=True)
 class SequenceEvaluation:
@@ -99,15 +112,8 @@ def run_engine(sequence: EvalSequence, engine: StreamingEngine) -> Predictions:
     results.extend(engine.flush())
     seconds = time.perf_counter() - start
     truth = sequence.truth
-    count = truth.num_frames
     rows = {int(stamp): row for row, stamp in enumerate(truth.timestamp_ns)}
-    out = Predictions(
-        timestamp_ns=truth.timestamp_ns.copy(), has_result=np.zeros(count, bool),
-        T_world_cam=np.full((count, 4, 4), np.nan), hand_valid=np.zeros((count, 2), bool),
-        confidence=np.zeros((count, 2)), joints_cam=np.full((count, 2, NUM_JOINTS, 3), np.nan),
-        joints_world=np.full((count, 2, NUM_JOINTS, 3), np.nan),
-        rotation_cam=np.tile(np.eye(3), (count, 2, 1, 1)), box_xyxy=np.zeros((count, 2, 4)),
-        frames_per_s=len(results) / max(seconds, 1e-9))
+    out = Predictions.empty(truth.timestamp_ns, len(results) / max(seconds, 1e-9))
     for result in results:
         row = rows.get(result.timestamp_ns)
         if row is None:

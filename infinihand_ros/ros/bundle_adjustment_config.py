@@ -16,12 +16,10 @@ from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import config_from_dict
-from infinihand_ros.core.config import read_yaml
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.ros.estimator_config import flatten
-from infinihand_ros.ros.estimator_config import ROS_PARAMETERS_KEY
+from infinihand_ros.ros.estimator_config import load_node_defaults
 from infinihand_ros.ros.estimator_config import unflatten
 from infinihand_ros.ros.estimator_parameters import ParameterSpec
 
@@ -98,19 +96,9 @@ BA_NODE_PARAMETER_SPECS: Final = {
 
 
 def load_ba_node_defaults(path: str | Path | None = None) -> dict[str, Any]:
-    """Return the flat parameter defaults of ``config/bundle_adjustment.yaml`` (or ``path``).
-
-    Raises:
-        ConfigError: for a missing file or one without the node's ``ros__parameters``.
-
-    """
-    path = Path(path) if path is not None else config_dir() / BA_PARAMS_FILE
-    data = read_yaml(path)
-    try:
-        parameters = data[BA_NODE_NAME][ROS_PARAMETERS_KEY]
-    except (KeyError, TypeError) as exc:
-        raise ConfigError(f'{path}: no {BA_NODE_NAME}.{ROS_PARAMETERS_KEY} section') from exc
-    return flatten(parameters)
+    """Return the flat parameter defaults of ``config/bundle_adjustment.yaml`` (or ``path``)."""
+    return load_node_defaults(Path(path) if path is not None else config_dir() / BA_PARAMS_FILE,
+                              BA_NODE_NAME)
 
 
 def ba_node_config_from_parameters(values: dict[str, Any]) -> BundleAdjustmentNodeConfig:

@@ -238,20 +238,25 @@ def unflatten(values: dict[str, Any]) -> dict[str, Any]:
     return tree
 
 
-def load_estimator_defaults(path: str | Path | None = None) -> dict[str, Any]:
-    """Return the flat parameter defaults of ``config/estimator.yaml`` (or ``path``).
+def load_node_defaults(path: Path, node_name: str) -> dict[str, Any]:
+    """Return the flat parameter defaults of ``node_name`` in the ROS params file ``path``.
 
     Raises:
-        ConfigError: for a missing file or one without ``infinihand_estimator.ros__parameters``.
+        ConfigError: for a missing file or one without ``<node_name>.ros__parameters``.
 
     """
-    path = Path(path) if path is not None else config_dir() / PARAMS_FILE
     data = read_yaml(path)
     try:
-        parameters = data[NODE_NAME][ROS_PARAMETERS_KEY]
+        parameters = data[node_name][ROS_PARAMETERS_KEY]
     except (KeyError, TypeError) as exc:
-        raise ConfigError(f'{path}: no {NODE_NAME}.{ROS_PARAMETERS_KEY} section') from exc
+        raise ConfigError(f'{path}: no {node_name}.{ROS_PARAMETERS_KEY} section') from exc
     return flatten(parameters)
+
+
+def load_estimator_defaults(path: str | Path | None = None) -> dict[str, Any]:
+    """Return the flat parameter defaults of ``config/estimator.yaml`` (or ``path``)."""
+    return load_node_defaults(Path(path) if path is not None else config_dir() / PARAMS_FILE,
+                              NODE_NAME)
 
 
 def estimator_config_from_parameters(values: dict[str, Any]) -> EstimatorConfig:
