@@ -10,31 +10,14 @@ from typing import Final
 
 import cv2
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
-from infinihand_ros.mano.builtin import SHAPE_EFFECTS
 from infinihand_ros.synth import capsules as caps
-from infinihand_ros.synth.hand_motion import JOINT_RADII_M
 from infinihand_ros.synth.render import SUBPIXEL_BITS
 from infinihand_ros.synth.sequence import mask_box
 import numpy as np
 
 #: Near clipping plane of the generator's renderer (m).
 NEAR_M: Final = 0.05
-#: Log-scale per unit of beta 0 (overall size) of the built-in hand.
-_SIZE_LOG_SCALE: Final = SHAPE_EFFECTS[0][3]
-_FINGER_JOINTS_PER_CHAIN: Final = 5
-
-
-def joint_radii(betas: np.ndarray) -> np.ndarray:
-    """Capsule radius (21,) in metres of each joint for a hand of shape ``betas`` (10,).
-
-    The generator's radii (wrist, then MCP, PIP, DIP, tip of each finger) scaled with the
-    built-in hand's overall size (beta 0).
-    """
-    per_finger = list(JOINT_RADII_M[1:]) * _FINGER_JOINTS_PER_CHAIN
-    size = float(np.exp(_SIZE_LOG_SCALE * np.asarray(betas, np.float64)[0]))
-    return np.array([JOINT_RADII_M[0], *per_finger][:NUM_JOINTS]) * size
 
 
 def _check_size(K: np.ndarray, width: int, height: int) -> np.ndarray:
@@ -53,7 +36,7 @@ def capsule_masks(joints_cam: np.ndarray, radii: np.ndarray, present: np.ndarray
 
     Args:
         joints_cam: (2, 21, 3) joints per side [left, right], camera frame, metres.
-        radii: (2, 21) joint radii per side (m), e.g. ``joint_radii(betas)``.
+        radii: (2, 21) joint radii per side (m), e.g. ``synth.hand_motion.joint_radii(betas)``.
         present: (2,) bool, which sides to draw.
         K: (3, 3) intrinsics, pixels.
         width: image width (px).

@@ -19,11 +19,11 @@ from infinihand_ros.core.mano_frames import transform_mano_params
 from infinihand_ros.data import sample_format as fmt
 from infinihand_ros.data.corpus_sequence import CorpusSequence
 from infinihand_ros.data.hand_masks import capsule_masks
-from infinihand_ros.data.hand_masks import joint_radii
 from infinihand_ros.data.hand_masks import masks_to_boxes
 from infinihand_ros.data.mano_fit import fit_mano
 from infinihand_ros.data.mano_fit import ManoFitConfig
 from infinihand_ros.mano.base import HandModel
+from infinihand_ros.synth.hand_motion import joint_radii
 import numpy as np
 import torch
 

@@ -172,11 +172,20 @@ def make_hand_track(rng: np.random.Generator, scene: Scene, side: int,
     positions, orient, gesture = _interpolate(
         times, key_times, np.stack([t[0] for t in targets]),
         Rotation.from_matrix(np.stack([t[1] for t in targets])), np.stack([t[2] for t in targets]))
-    size = float(np.exp(0.05 * betas[0]))
-    radii = np.array([JOINT_RADII_M[0]] + list(JOINT_RADII_M[1:]) * 5) * size
+    radii = joint_radii(betas)
     return HandTrack(side=side, global_orient=orient,
                      hand_pose=gestures.gesture_hand_pose(gesture, side),
                      betas=betas, transl=positions, radii=radii, skin_rgb=skin_rgb)
+
+
+def joint_radii(betas: np.ndarray) -> np.ndarray:
+    """Capsule radius (21,) in metres of each joint (OpenPose order) of a hand of shape ``betas``.
+
+    ``JOINT_RADII_M`` (wrist, then MCP, PIP, DIP, tip of each finger) scaled with the hand's
+    overall size, ``exp(0.05 * beta_0)``.
+    """
+    size = float(np.exp(0.05 * np.asarray(betas, np.float64)[0]))
+    return np.array([JOINT_RADII_M[0]] + list(JOINT_RADII_M[1:]) * 5) * size
 
 
 def sample_hand_appearance(rng: np.random.Generator) -> tuple[np.ndarray, tuple[int, int, int]]:

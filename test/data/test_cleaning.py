@@ -13,10 +13,10 @@ from infinihand_ros.data.cleaning import KEEP
 from infinihand_ros.data.cleaning import REVIEW
 from infinihand_ros.data.cleaning import SequenceLabels
 from infinihand_ros.data.hand_masks import capsule_masks
-from infinihand_ros.data.hand_masks import joint_radii
 from infinihand_ros.data.hand_masks import masks_to_boxes
 from infinihand_ros.data.keypoint_source import SyntheticKeypointSource
 from infinihand_ros.data.synthetic_tracks import known_track
+from infinihand_ros.synth.hand_motion import joint_radii
 import numpy as np
 import pytest
 
