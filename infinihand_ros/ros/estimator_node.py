@@ -13,6 +13,7 @@ unrefined and diagnostics say so.
 """
 
 from collections import OrderedDict
+import copy
 import threading
 from typing import Any, Final
 
@@ -81,11 +82,14 @@ class EstimatorNode(Node):
         self._ba_node = (BANodeClient(self, self.config.ba_node, self.config.frames.world_frame_id)
                          if self.config.engine.bundle_adjustment == 'node' else None)
         overrides = QoSOverridingOptions.with_default_policies()
+        # rclpy writes a topic's QoS overrides into the profile it is given: one copy per topic.
         for msg_type, topic in ((Image, 'image'), (CompressedImage, 'image/compressed')):
-            self.create_subscription(msg_type, topic, self._on_image, qos_profile_sensor_data,
+            self.create_subscription(msg_type, topic, self._on_image,
+                                     copy.copy(qos_profile_sensor_data),
                                      qos_overriding_options=overrides)
         self.create_subscription(CameraInfo, 'camera_info', self._on_camera_info,
-                                 qos_profile_sensor_data, qos_overriding_options=overrides)
+                                 copy.copy(qos_profile_sensor_data),
+                                 qos_overriding_options=overrides)
         self.create_timer(self.config.diagnostics.period_s, self._publish_diagnostics)
         self._worker = threading.Thread(target=self._run_inference, name='inference',
                                         daemon=True)

@@ -5,7 +5,10 @@ The recorded outputs are checked against the bag's stamps and against the offlin
 (through the same pipeline rules) on exactly the frames the node processed.
 """
 
+import json
 from pathlib import Path
+import subprocess
+import sys
 import time
 
 from infinihand_ros.bag.camera_stream import read_camera_frames
@@ -42,12 +45,45 @@ OUTPUTS = [f'{NODE}/camera_pose', f'{NODE}/hands/left/landmarks',
 READY = 'ready: engine'
 #: Live and offline runs do the same float math on the same frames; allow for thread order.
 OFFLINE_TOLERANCE = 1e-5
+#: The node's standard QoS-override parameters: a reliable, deep image subscription, so that
+#: every replayed frame reaches the node even on a loaded machine (sensor-data QoS may lose some).
+LOSSLESS_INPUT = """/infinihand_estimator:
+  ros__parameters:
+    qos_overrides:
+      /camera/image_raw/compressed:
+        subscription:
+          reliability: reliable
+          history: keep_last
+          depth: 200
+"""
 
 
 @pytest.fixture(autouse=True)
 def _installed() -> None:
     if not (LIB / 'estimator').exists():
         pytest.skip('the package is not built (colcon build --symlink-install)')
+
+
+PROBE = """
+import json, sys, time
+import rclpy
+rclpy.init()
+node = rclpy.create_node('qos_probe')
+deadline = time.monotonic() + 30.0
+while time.monotonic() < deadline and not all(
+        node.get_subscriptions_info_by_topic(topic) for topic in sys.argv[1:]):
+    time.sleep(0.1)
+print(json.dumps({topic: [info.qos_profile.reliability.name for info in
+                          node.get_subscriptions_info_by_topic(topic)]
+                  for topic in sys.argv[1:]}))
+"""
+
+
+def _subscription_reliability(env: dict[str, str], topics: list[str]) -> dict[str, list[str]]:
+    """Return the reliability of every subscription of each topic, seen from another process."""
+    done = subprocess.run([sys.executable, '-c', PROBE, *topics], env=env, capture_output=True,
+                          text=True, timeout=60, check=True)
+    return json.loads(done.stdout)
 
 
 def _recorded(bag: Path) -> dict[str, list]:
@@ -76,14 +112,21 @@ def _offline(stamps: list[int]) -> list:
 def test_sample_bag_through_the_live_node(tmp_path: Path) -> None:
     """Stamps match inputs, 21-joint arrays, offline-equal results, SIGINT exits 0."""
     env = ros_env(fresh_domain_id())
-    params = ['--params-file', str(SHARE / 'config' / 'estimator.yaml')]
+    lossless = tmp_path / 'lossless_input.yaml'
+    lossless.write_text(LOSSLESS_INPUT)
+    params = ['--params-file', str(SHARE / 'config' / 'estimator.yaml'),
+              '--params-file', str(lossless)]
     node_log = tmp_path / 'estimator.log'
     with running('estimator', ['--ros-args', *params, *REMAPS], env, node_log) as node, \
             running('record', ['-o', str(tmp_path / 'out'), *OUTPUTS], env,
                     tmp_path / 'record.log') as recorder:
         assert wait_for_text(node_log, READY, node, 120.0), node_log.read_text()
+        # The override reaches its topic only; the others keep the sensor-data default.
+        assert _subscription_reliability(env, ['/camera/image_raw/compressed',
+                                               '/camera/camera_info']) == {
+            '/camera/image_raw/compressed': ['RELIABLE'], '/camera/camera_info': ['BEST_EFFORT']}
         replay = start('replay', [str(SAMPLE_BAG), '--rate', '2', '--wait-for-subscribers',
-                                  '20', '--topics', '/camera/image_raw/compressed',
+                                  '20', '--delay', '1', '--topics', '/camera/image_raw/compressed',
                                   '/camera/camera_info'], env, tmp_path / 'replay.log')
         assert replay.wait(120) == 0, (tmp_path / 'replay.log').read_text()
         assert wait_for_text(node_log, READY, node, 1.0)
