@@ -22,6 +22,8 @@ from infinihand_ros.engine.config import MODES
 NODE_NAME: Final = 'infinihand_estimator'
 PARAMS_FILE: Final = 'estimator.yaml'
 ROS_PARAMETERS_KEY: Final = 'ros__parameters'
+#: The params-file key that matches every node (ROS 2 wildcard).
+ANY_NODE_KEY: Final = '/**'
 CAMERA_MOTIONS: Final = ('estimate', 'static')
 SMOOTHING_MODES: Final = ('none', 'one_euro')  # not 'off': YAML reads a bare off as false
 BA_MODES: Final = ('none', 'in_process', 'node')
@@ -241,15 +243,20 @@ def unflatten(values: dict[str, Any]) -> dict[str, Any]:
 def load_node_defaults(path: Path, node_name: str) -> dict[str, Any]:
     """Return the flat parameter defaults of ``node_name`` in the ROS params file ``path``.
 
+    The section is ``<node_name>`` (also written ``/<node_name>``) or the wildcard ``/**``.
+
     Raises:
-        ConfigError: for a missing file or one without ``<node_name>.ros__parameters``.
+        ConfigError: for a missing file or one without such a ``ros__parameters`` section.
 
     """
     data = read_yaml(path)
+    sections = data if isinstance(data, dict) else {}
+    key = next((k for k in (node_name, f'/{node_name}', ANY_NODE_KEY) if k in sections), None)
     try:
-        parameters = data[node_name][ROS_PARAMETERS_KEY]
+        parameters = sections[key][ROS_PARAMETERS_KEY]
     except (KeyError, TypeError) as exc:
-        raise ConfigError(f'{path}: no {node_name}.{ROS_PARAMETERS_KEY} section') from exc
+        raise ConfigError(f'{path}: no {node_name}.{ROS_PARAMETERS_KEY} (or '
+                          f'{ANY_NODE_KEY}.{ROS_PARAMETERS_KEY}) section') from exc
     return flatten(parameters)
 
 

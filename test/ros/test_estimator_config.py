@@ -1,12 +1,14 @@
 """The estimator's parameter tree, defaults file and specs (ros/estimator_config.py)."""
 
 import dataclasses
+from pathlib import Path
 
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.ros.estimator_config import estimator_config_from_parameters
 from infinihand_ros.ros.estimator_config import EstimatorConfig
 from infinihand_ros.ros.estimator_config import flatten
 from infinihand_ros.ros.estimator_config import load_estimator_defaults
+from infinihand_ros.ros.estimator_config import load_node_defaults
 from infinihand_ros.ros.estimator_config import unflatten
 from infinihand_ros.ros.estimator_parameters import PARAMETER_SPECS
 import pytest
@@ -64,3 +66,19 @@ def test_bad_values_name_the_parameter(name: str, value: object, match: str) -> 
     values[name] = value
     with pytest.raises(ConfigError, match=match):
         estimator_config_from_parameters(values)
+
+
+@pytest.mark.parametrize('key', ['my_node', '/my_node', '/**'])
+def test_params_file_section_by_name_or_wildcard(tmp_path: Path, key: str) -> None:
+    """The node's own section, its slash form or the /** wildcard give the values."""
+    path = tmp_path / 'params.yaml'
+    path.write_text(f"'{key}':\n  ros__parameters:\n    camera:\n      motion: static\n")
+    assert load_node_defaults(path, 'my_node') == {'camera.motion': 'static'}
+
+
+def test_params_file_without_the_node_section_is_refused(tmp_path: Path) -> None:
+    """Another node's section only: an error naming the file and the missing section."""
+    path = tmp_path / 'params.yaml'
+    path.write_text('other_node:\n  ros__parameters:\n    a: 1\n')
+    with pytest.raises(ConfigError, match=r'params.yaml: no my_node.ros__parameters'):
+        load_node_defaults(path, 'my_node')

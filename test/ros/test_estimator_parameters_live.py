@@ -42,3 +42,12 @@ def test_bad_params_file_value_stops_the_node(tmp_path: Path) -> None:
     done = run_estimator(['--params-file', str(params)])
     assert done.returncode == 1
     assert 'smoothing.min_cutoff_hz' in done.stderr
+
+
+def test_renamed_node_gets_the_wildcard_params_file(tmp_path: Path) -> None:
+    """A /** params file reaches a node renamed with __node:= (its bad value stops it)."""
+    params = tmp_path / 'bad.yaml'
+    params.write_text("'/**':\n  ros__parameters:\n    camera:\n      motion: moving\n")
+    done = run_estimator(['-r', '__node:=renamed_estimator', '--params-file', str(params)])
+    assert done.returncode == 1, done.stderr
+    assert 'camera.motion' in done.stderr and 'cannot start' in done.stderr
