@@ -1,13 +1,17 @@
 #!/bin/bash
 # Reproduce the bundled model models/tiny_synthetic on a CPU (docs/model_card.md): synthetic
-# training and held-out data, Stage I, Stage II, export, evaluation. Every step resumes: run it
-# again after an interruption and it continues where it stopped. Outputs go to runs/ (ignored
-# by git). Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS]]
+# training and held-out data, Stage I, Stage II, then a second round of both stages (2 CPU
+# processes, DistributedDataParallel), export, evaluation. Every step resumes: run it again
+# after an interruption and it continues where it stopped. Outputs go to runs/ (ignored by
+# git). Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
+# [ROUND2_STAGE2_STEPS]]]]
 set -eo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
 STAGE1_STEPS=${1:-1500}
 STAGE2_STEPS=${2:-1400}
+ROUND2_STAGE1_STEPS=${3:-1000}
+ROUND2_STAGE2_STEPS=${4:-900}
 
 generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
   if [ ! -f "$1/samples/meta.json" ]; then
@@ -28,18 +32,30 @@ for i in $(seq 0 11); do
   generate "runs/heldout/seed_${seed}_fps${fps}" "$seed" 150 "$fps" 320 240
 done
 
-train_stage() {  # train_stage OUTPUT ARGS...: a new run, or the resumed one
-  if [ -d "$1/checkpoints" ]; then
-    python -m infinihand_ros.train --resume "$1" --no-progress
+train_stage() {  # train_stage PROCESSES OUTPUT ARGS...: a new run, or the resumed one
+  local launch=(python -m infinihand_ros.train)
+  if [ "$1" -gt 1 ]; then
+    launch=(python -m torch.distributed.run --standalone --nproc-per-node "$1" -m infinihand_ros.train)
+  fi
+  shift
+  if [ -f "$1/checkpoints/final/model/model.safetensors" ]; then
+    return
+  elif [ -d "$1/checkpoints" ]; then
+    "${launch[@]}" --resume "$1" --no-progress
   else
-    python -m infinihand_ros.train --output "$@" --no-progress
+    "${launch[@]}" --output "$@" --no-progress
   fi
 }
-train_stage runs/tiny_stage1 --config config/train_tiny.yaml --steps "$STAGE1_STEPS"
-train_stage runs/tiny_stage2 --config config/train_tiny_stage2.yaml --steps "$STAGE2_STEPS" \
+train_stage 1 runs/tiny_stage1 --config config/train_tiny.yaml --steps "$STAGE1_STEPS"
+train_stage 1 runs/tiny_stage2 --config config/train_tiny_stage2.yaml --steps "$STAGE2_STEPS" \
   --init runs/tiny_stage1/checkpoints/final/model
+# Round 2: both stages again from the round-1 model, 2 processes x the configs' batch sizes.
+train_stage 2 runs/tiny_stage1b --config config/train_tiny.yaml --steps "$ROUND2_STAGE1_STEPS" \
+  --init runs/tiny_stage2/checkpoints/final/model
+train_stage 2 runs/tiny_stage2b --config config/train_tiny_stage2.yaml \
+  --steps "$ROUND2_STAGE2_STEPS" --init runs/tiny_stage1b/checkpoints/final/model
 
-python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage2/checkpoints/final/model \
+python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage2b/checkpoints/final/model \
   --out models/tiny_synthetic --train-sequences runs/synth_train --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
