@@ -56,14 +56,7 @@ LOSSLESS_INPUT = """/infinihand_estimator:
           history: keep_last
           depth: 200
 """
-
-
-@pytest.fixture(autouse=True)
-def _installed() -> None:
-    if not (LIB / 'estimator').exists():
-        pytest.skip('the package is not built (colcon build --symlink-install)')
-
-
+#: Run in another process: the reliability of every subscription of each topic in argv.
 PROBE = """
 import json, sys, time
 import rclpy
@@ -77,6 +70,12 @@ print(json.dumps({topic: [info.qos_profile.reliability.name for info in
                           node.get_subscriptions_info_by_topic(topic)]
                   for topic in sys.argv[1:]}))
 """
+
+
+@pytest.fixture(autouse=True)
+def _installed() -> None:
+    if not (LIB / 'estimator').exists():
+        pytest.skip('the package is not built (colcon build --symlink-install)')
 
 
 def _subscription_reliability(env: dict[str, str], topics: list[str]) -> dict[str, list[str]]:

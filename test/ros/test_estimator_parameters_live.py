@@ -6,6 +6,7 @@ import subprocess
 from infinihand_ros.ros.node_processes import fresh_domain_id
 from infinihand_ros.ros.node_processes import ros_env
 from live_processes import LIB
+from live_processes import SHARE
 import pytest
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
@@ -44,10 +45,12 @@ def test_bad_params_file_value_stops_the_node(tmp_path: Path) -> None:
     assert 'smoothing.min_cutoff_hz' in done.stderr
 
 
-def test_renamed_node_gets_the_wildcard_params_file(tmp_path: Path) -> None:
-    """A /** params file reaches a node renamed with __node:= (its bad value stops it)."""
-    params = tmp_path / 'bad.yaml'
-    params.write_text("'/**':\n  ros__parameters:\n    camera:\n      motion: moving\n")
+def test_renamed_node_gets_the_shipped_params_file(tmp_path: Path) -> None:
+    """The shipped file (keyed /**) reaches a node renamed with __node:=; a bad value stops it."""
+    shipped = (SHARE / 'config' / 'estimator.yaml').read_text()
+    assert 'motion: estimate ' in shipped
+    params = tmp_path / 'estimator.yaml'
+    params.write_text(shipped.replace('motion: estimate ', 'motion: moving '))
     done = run_estimator(['-r', '__node:=renamed_estimator', '--params-file', str(params)])
     assert done.returncode == 1, done.stderr
     assert 'camera.motion' in done.stderr and 'cannot start' in done.stderr
