@@ -54,7 +54,8 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         engine_statistics: ``StreamingEngine.statistics`` (metric scale, BA state); with the
             BA node, its ``ba`` entry is the ``BANodeLink`` statistics.
         window_s: the statistics window, seconds (no image for this long: WARN).
-        previous: the figures of the last report, to tell new drops and bad frames.
+        previous: the figures of the last report, to tell new drops and bad frames; None for
+            the first report (drops and bad frames since the start are new).
 
     """
     state = ba_state(engine_statistics)
@@ -76,11 +77,12 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
     problems = []
     if snapshot.seconds_since_input > window_s:
         problems.append(f'no image for {snapshot.seconds_since_input:.1f} s')
-    if previous is not None and snapshot.dropped > previous.dropped:
-        problems.append(f'{snapshot.dropped - previous.dropped} frame(s) dropped (input faster '
+    dropped_before, bad_before = (0, 0) if previous is None else (previous.dropped, previous.bad)
+    if snapshot.dropped > dropped_before:
+        problems.append(f'{snapshot.dropped - dropped_before} frame(s) dropped (input faster '
                         'than the model)')
-    if previous is not None and snapshot.bad > previous.bad:
-        problems.append(f'{snapshot.bad - previous.bad} bad frame(s) skipped')
+    if snapshot.bad > bad_before:
+        problems.append(f'{snapshot.bad - bad_before} bad frame(s) skipped')
     if state == 'failed':
         problems.append('bundle adjustment failed: poses are unrefined')
     if state in UNAVAILABLE:

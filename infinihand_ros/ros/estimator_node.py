@@ -8,8 +8,8 @@ latency never grows. A bad frame (encoding, size, truncated data, bad CameraInfo
 throttled, counted and skipped. Inputs (relative, remappable): ``image``, ``image/compressed``,
 ``camera_info``, with sensor-data QoS overridable by parameters. With
 ``engine.bundle_adjustment: node`` keyframes go to the bundle-adjustment node and its
-corrections are applied between frames (``BANodeClient``); without that node the poses go on
-unrefined and diagnostics say so.
+corrections are applied between frames and while no frame comes (``BANodeClient``); without
+that node the poses go on unrefined and diagnostics say so.
 """
 
 from collections import OrderedDict
@@ -132,13 +132,18 @@ class EstimatorNode(Node):
                                   throttle_duration_sec=self.config.bad_frame_log_period_s)
 
     def _run_inference(self) -> None:
-        """Take the newest image, run it through the pipeline, publish; until closed."""
+        """Take the newest image, run it through the pipeline, publish; until closed.
+
+        While no image comes, the BA node's corrections are still applied (a stream that paused
+        or ended right after a keyframe gets its refinement).
+        """
         while not self._slot.closed:
             item = self._slot.take(TAKE_TIMEOUT_S)
-            if item is None:
-                continue
             try:
-                self._process(*item)
+                if item is None:  # no frame: corrections that came after the last one go in now
+                    self._apply_corrections()
+                else:
+                    self._process(*item)
             except RuntimeError:  # rclpy's RCLError: SIGINT invalidated the context mid-publish
                 if self.context.ok():
                     raise

@@ -33,6 +33,13 @@ def test_warnings_name_their_cause() -> None:
         assert text in report.message
 
 
+def test_first_report_counts_drops_since_the_start() -> None:
+    """A burst before the first report (no previous figures) still warns of its drops."""
+    report = diagnostic_report(replace(RUNNING, dropped=7, bad=2), ENGINE, 5.0)
+    assert report.level == WARN
+    assert '7 frame(s) dropped' in report.message and '2 bad frame(s)' in report.message
+
+
 def test_stale_before_the_first_image() -> None:
     """No image received yet: STALE."""
     report = diagnostic_report(replace(RUNNING, received=0), ENGINE, 5.0)
