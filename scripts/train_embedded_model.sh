@@ -1,10 +1,11 @@
 #!/bin/bash
 # Reproduce the bundled model models/tiny_synthetic on a CPU (docs/model_card.md): synthetic
-# training and held-out data, Stage I, Stage II, then a second round of both stages (2 CPU
-# processes, DistributedDataParallel), export, evaluation. Every step resumes: run it again
-# after an interruption and it continues where it stopped. Outputs go to runs/ (ignored by
-# git). Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
-# [ROUND2_STAGE2_STEPS]]]]
+# training and held-out data, Stage I, Stage II, a second round of both stages, then round 3:
+# the camera phase and a Stage II "motion" round (2 CPU processes from round 2 on,
+# DistributedDataParallel), export, evaluation. Every step resumes: run it again after an
+# interruption and it continues where it stopped. Outputs go to runs/ (ignored by git).
+# Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
+# [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS]]]]]]
 set -eo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
@@ -12,6 +13,8 @@ STAGE1_STEPS=${1:-1500}
 STAGE2_STEPS=${2:-1400}
 ROUND2_STAGE1_STEPS=${3:-1000}
 ROUND2_STAGE2_STEPS=${4:-900}
+CAMERA_STEPS=${5:-700}
+MOTION_STEPS=${6:-900}
 
 generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
   if [ ! -f "$1/samples/meta.json" ]; then
@@ -54,8 +57,14 @@ train_stage 2 runs/tiny_stage1b --config config/train_tiny.yaml --steps "$ROUND2
   --init runs/tiny_stage2/checkpoints/final/model
 train_stage 2 runs/tiny_stage2b --config config/train_tiny_stage2.yaml \
   --steps "$ROUND2_STAGE2_STEPS" --init runs/tiny_stage1b/checkpoints/final/model
+# Round 3: the camera phase (backbone and camera head on camera motion), then Stage II again
+# with jittered boxes, clips of every other frame and a larger camera weight.
+train_stage 2 runs/tiny_camera --config config/train_tiny_camera.yaml --steps "$CAMERA_STEPS" \
+  --init runs/tiny_stage2b/checkpoints/final/model
+train_stage 2 runs/tiny_stage2c --config config/train_tiny_stage2_motion.yaml \
+  --steps "$MOTION_STEPS" --init runs/tiny_camera/checkpoints/final/model
 
-python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage2b/checkpoints/final/model \
+python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage2c/checkpoints/final/model \
   --out models/tiny_synthetic --train-sequences runs/synth_train --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --save-predictions runs/eval_heldout | tee runs/eval_heldout.md

@@ -97,11 +97,14 @@ class DetectionConfig:
         presence_threshold: a hand mask whose peak probability is below this is no hand.
         fov_range_deg: predicted fields of view are clamped to this range (the camera head's
             ReLU allows 0, which no camera has).
+        peak_region: box only the connected region around each hand mask's peak, so stray pixels
+            do not stretch the box (ours; the paper boxes every pixel above the threshold).
 
     """
 
     presence_threshold: float = 0.5
     fov_range_deg: tuple[float, float] = (5.0, 170.0)
+    peak_region: bool = False
 
     def __post_init__(self) -> None:
         if not 0.0 < self.fov_range_deg[0] < self.fov_range_deg[1] < 180.0:

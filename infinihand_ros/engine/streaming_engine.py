@@ -59,8 +59,10 @@ class StreamingEngine:
         self.config = config or load_engine_config()
         self.model = model or build_model(self.config)
         self._anchor_frames = self.model.geometry.config.memory.anchor_frames
-        self._detection = self.model.hand_detection(self.config.detection.presence_threshold,
-                                                    self.config.detection.fov_range_deg)
+        detection = self.config.detection
+        self._detection = self.model.hand_detection(detection.presence_threshold,
+                                                    detection.fov_range_deg,
+                                                    detection.peak_region)
         self._device = next(self.model.parameters()).device
         self._decoder = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_decode')
                          if self.config.mode == 'windowed' else None)

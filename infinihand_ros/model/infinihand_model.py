@@ -53,6 +53,8 @@ class HandDetection:
         presence_threshold: a mask whose peak probability is below this is no detection.
         fov_range_rad: predicted fields of view are clamped to this range (the camera head's
             ReLU allows 0, which no camera has).
+        peak_region: box only the connected region around each mask's peak (ours; the paper boxes
+            every pixel above the threshold).
 
     """
 
@@ -60,6 +62,7 @@ class HandDetection:
     min_pixels: int = 16
     presence_threshold: float = 0.5
     fov_range_rad: tuple[float, float] = (math.radians(5.0), math.radians(170.0))
+    peak_region: bool = False
 
 
 @dataclass(frozen=True)
@@ -107,11 +110,13 @@ class InfiniHandModel(nn.Module):
         self.hand_branch = hand_branch
 
     def hand_detection(self, presence_threshold: float = 0.5,
-                       fov_range_deg: tuple[float, float] = (5.0, 170.0)) -> HandDetection:
+                       fov_range_deg: tuple[float, float] = (5.0, 170.0),
+                       peak_region: bool = False) -> HandDetection:
         """Return detection settings: the geometry config's mask thresholds plus these."""
         masks = self.geometry.config.masks
         return HandDetection(masks.threshold, masks.min_pixels, presence_threshold,
-                             (math.radians(fov_range_deg[0]), math.radians(fov_range_deg[1])))
+                             (math.radians(fov_range_deg[0]), math.radians(fov_range_deg[1])),
+                             peak_region)
 
     def new_stream(self) -> GeometryStream:
         """Return an empty stream (memories and frame counters) for one sequence."""
@@ -185,7 +190,8 @@ def _detect_hands(masks: torch.Tensor, detection: HandDetection
     """Return the tight boxes of the present hands in (F, 2, H, W) masks and their peaks."""
     peak = masks.amax(dim=(-2, -1))
     tight, valid = masks_to_boxes(masks, detection.mask_threshold, detection.min_pixels,
-                                  expand=1.0)  # the hand branch expands boxes itself
+                                  expand=1.0,  # the hand branch expands boxes itself
+                                  peak_region=detection.peak_region)
     frame, side = torch.nonzero(valid & (peak > detection.presence_threshold), as_tuple=True)
     return HandBoxes(tight[frame, side], frame, side), peak[frame, side]
 

@@ -41,7 +41,7 @@ def predicted_boxes(masks: torch.Tensor, detection: HandDetection
     """Return tight boxes (F, 2, 4) and detected (F, 2) of hand probabilities (F, 2, H, W)."""
     with torch.no_grad():
         tight, valid = masks_to_boxes(masks, detection.mask_threshold, detection.min_pixels,
-                                      expand=1.0)
+                                      expand=1.0, peak_region=detection.peak_region)
         peak = masks.amax(dim=(-2, -1))
     return tight, valid & (peak > detection.presence_threshold)
 
@@ -73,7 +73,8 @@ class ClipRunner(nn.Module):
         super().__init__()
         self.model = model
         self.config = config
-        self.detection = detection or model.hand_detection()
+        self.detection = detection or model.hand_detection(
+            peak_region=config.peak_region_boxes)
 
     def forward(self, batch: dict[str, torch.Tensor], use_gt: torch.Tensor
                 ) -> dict[str, torch.Tensor]:

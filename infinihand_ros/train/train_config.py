@@ -26,6 +26,7 @@ from infinihand_ros.core.config import read_yaml
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.train.box_jitter import BoxJitter
 from infinihand_ros.train.losses import load_loss_config
 from infinihand_ros.train.losses import LossConfig
 from infinihand_ros.train.losses import LOSSES_SECTION
@@ -221,6 +222,9 @@ class TrainConfig:
         seed: seed of the data order and the box sampling.
         gt_box_ratio: probability that a visible hand runs on its ground-truth box rather than
             the predicted one (paper Stage II: 0.5; Stage I: 1.0).
+        box_jitter: random scale and shift of the ground-truth boxes (ours; off by default).
+        peak_region_boxes: predicted boxes cover only the region around each mask's peak, as
+            the engine's ``detection.peak_region`` (ours; off by default).
         use_gt_intrinsics: run the hand branch with the annotated intrinsics (else the
             predicted ones).
         mask_logit_eps: mask probabilities are clamped to [eps, 1 - eps] before ``logit``
@@ -247,6 +251,8 @@ class TrainConfig:
     steps: int = 1
     seed: int = 0
     gt_box_ratio: float = 1.0
+    box_jitter: BoxJitter = field(default_factory=BoxJitter)
+    peak_region_boxes: bool = False
     use_gt_intrinsics: bool = True
     mask_logit_eps: float = 1.0e-6
     checkpoint_every: int = 1000

@@ -26,6 +26,7 @@ from infinihand_ros.model.infinihand_model import InfiniHandModel
 from infinihand_ros.model.infinihand_model import load_branch_configs
 from infinihand_ros.model.io.compose import load_composed_model
 from infinihand_ros.train import sequence_reader as keys
+from infinihand_ros.train.box_jitter import jitter_boxes
 from infinihand_ros.train.clip_data import build_clip_loader
 from infinihand_ros.train.clip_runner import ClipRunner
 from infinihand_ros.train.clip_runner import LOSS
@@ -183,6 +184,9 @@ class _Run:
         """Run one optimizer step; return the outputs and the gradient norm before clipping."""
         shape = batch[keys.BOX_VALID].shape
         use_gt = torch.rand(shape, generator=self.box_generator) < self.config.gt_box_ratio
+        if self.config.box_jitter.enabled:
+            batch = {**batch, keys.BOXES: jitter_boxes(batch[keys.BOXES], self.config.box_jitter,
+                                                       self.box_generator)}
         batch = _batch_to(batch, self.device)
         outputs = self.runner(batch, use_gt.to(self.device))
         self.optimizer.zero_grad(set_to_none=True)

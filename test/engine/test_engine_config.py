@@ -18,9 +18,10 @@ def _write(tmp_path, text: str):
 
 
 def test_the_package_config_loads() -> None:
-    """config/engine.yaml is valid and has BA off."""
+    """config/engine.yaml is valid, has BA off and boxes the region around each mask peak."""
     config = load_engine_config()
     assert config.bundle_adjustment is None and config.model.geometry == 'tiny'
+    assert config.detection.peak_region
 
 
 @pytest.mark.parametrize('device, message', [

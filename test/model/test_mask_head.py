@@ -32,3 +32,30 @@ def test_bad_arguments_are_rejected() -> None:
         masks_to_boxes(torch.zeros(5), 0.5, 1, 1.5)
     with pytest.raises(InputError, match='positive'):
         masks_to_boxes(torch.zeros(5, 5), 0.5, 1, 0.0)
+
+
+def test_peak_region_boxes_only_the_blob_around_the_peak() -> None:
+    """A stray blob far from the hand stretches the plain box but not the peak-region one."""
+    masks = torch.zeros(1, 2, 20, 30)
+    masks[0, 0, 2:6, 10:16] = 0.9
+    masks[0, 0, 3, 12] = 0.95                   # the peak, inside the hand blob
+    masks[0, 0, 15:19, 25:29] = 0.8             # a larger stray blob, lower probability
+    masks[0, 0, 10:20, 0:3] = 0.7
+    plain, _ = masks_to_boxes(masks, 0.5, 4, expand=1.0)
+    peaked, valid = masks_to_boxes(masks, 0.5, 4, expand=1.0, peak_region=True)
+    torch.testing.assert_close(plain[0, 0], torch.tensor([0.0, 2.0, 29.0, 20.0]))
+    torch.testing.assert_close(peaked[0, 0], torch.tensor([10.0, 2.0, 16.0, 6.0]))
+    assert valid.tolist() == [[True, False]]
+
+
+def test_peak_region_joins_diagonal_neighbours_and_counts_only_its_pixels() -> None:
+    """8-connected pixels belong to the peak's region; min_pixels counts that region only."""
+    masks = torch.zeros(1, 10, 10)
+    masks[0, 1, 1] = 0.9
+    masks[0, 2, 2] = 0.8                        # diagonal neighbour: same region
+    masks[0, 6:9, 6:9] = 0.7                    # 9 pixels, another region
+    boxes, valid = masks_to_boxes(masks, 0.5, 2, expand=1.0, peak_region=True)
+    torch.testing.assert_close(boxes[0], torch.tensor([1.0, 1.0, 3.0, 3.0]))
+    assert valid.tolist() == [True]
+    _, valid = masks_to_boxes(masks, 0.5, 3, expand=1.0, peak_region=True)
+    assert valid.tolist() == [False]            # 2 pixels around the peak, though 11 in all

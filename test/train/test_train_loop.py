@@ -46,8 +46,12 @@ def test_stage1_overfits_one_clip(write_run_config: Callable[..., Path], tmp_pat
 
 def test_resume_continues_bit_for_bit(write_run_config: Callable[..., Path],
                                       tmp_path: Path) -> None:
-    """Stage II, 6 steps in one go == 3 steps, then resume for 3: identical losses."""
-    config = load_train_config(write_run_config(steps=6, checkpoint_every=3))
+    """Stage II, 6 steps in one go == 3 steps, then resume for 3: identical losses.
+
+    The boxes are jittered, so the box generator's state must survive the checkpoint too.
+    """
+    config = load_train_config(write_run_config(steps=6, checkpoint_every=3,
+                                                box_jitter={'scale': 0.3, 'shift': 0.1}))
     whole = train(config, tmp_path / 'whole', progress=False)
     first = train(config, tmp_path / 'split', stop_after=3, progress=False)
     assert first.checkpoint == tmp_path / 'split' / CHECKPOINTS_DIR / 'step_0000003'

@@ -56,7 +56,7 @@ def run_settings(model_files: tuple[Path, Path], sequences: list[Path], **train:
     }
     for key, value in train.items():
         if isinstance(value, dict):
-            settings[key] = {**settings[key], **value}
+            settings[key] = {**settings.get(key, {}), **value}
         else:
             settings[key] = value
     return settings

@@ -3,11 +3,15 @@
 The mask head is a second ``DPTHead`` whose decoder (projections, resizing, RefineNet fusion,
 first output convs) starts as a copy of the depth head's weights, with a freshly initialised
 2-channel final layer: channel 0 = left hand, channel 1 = right hand (``core`` side convention),
-sigmoid outputs. Boxes are the tight boxes of the thresholded masks expanded about their centre.
+sigmoid outputs. Boxes are the tight boxes of the thresholded masks expanded about their centre;
+optionally (ours, not the paper's) of the connected region around the mask's peak only, so that
+stray pixels away from the hand do not stretch its box.
 """
 
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.model.heads.dpt_head import DPTHead
+import numpy as np
+from scipy import ndimage
 import torch
 from torch import nn
 
@@ -42,8 +46,29 @@ def activate_masks(raw: torch.Tensor) -> torch.Tensor:
     return torch.sigmoid(raw)
 
 
-def masks_to_boxes(masks: torch.Tensor, threshold: float, min_pixels: int, expand: float
-                   ) -> tuple[torch.Tensor, torch.Tensor]:
+def peak_regions(masks: torch.Tensor, inside: torch.Tensor) -> torch.Tensor:
+    """Return ``inside`` (..., H, W) with only the 8-connected region of each mask's peak kept.
+
+    Args:
+        masks: (..., H, W) probabilities.
+        inside: (..., H, W) bool, the pixels above the threshold.
+
+    """
+    shape = inside.shape
+    probabilities = masks.detach().reshape(-1, shape[-2] * shape[-1]).float().cpu().numpy()
+    above = inside.detach().reshape(-1, *shape[-2:]).cpu().numpy()
+    kept = np.zeros_like(above)
+    connectivity = np.ones((3, 3), bool)
+    for index, mask in enumerate(above):
+        peak = np.unravel_index(int(np.argmax(probabilities[index])), mask.shape)
+        if mask[peak]:
+            labels, _ = ndimage.label(mask, structure=connectivity)
+            kept[index] = labels == labels[peak]
+    return torch.from_numpy(kept).reshape(shape).to(inside.device)
+
+
+def masks_to_boxes(masks: torch.Tensor, threshold: float, min_pixels: int, expand: float,
+                   peak_region: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
     """Return expanded boxes and validity from hand masks.
 
     Args:
@@ -51,6 +76,7 @@ def masks_to_boxes(masks: torch.Tensor, threshold: float, min_pixels: int, expan
         threshold: a pixel belongs to the hand when its probability exceeds this.
         min_pixels: fewer hand pixels than this -> no box (valid False).
         expand: the tight box's width and height are multiplied by this about its centre.
+        peak_region: box (and count) only the 8-connected region around each mask's peak.
 
     Returns:
         boxes: (..., 4) float32 ``[x0, y0, x1, y1]`` in pixels (pixel-edge coordinates, so a
@@ -66,6 +92,8 @@ def masks_to_boxes(masks: torch.Tensor, threshold: float, min_pixels: int, expan
     if expand <= 0:
         raise InputError(f'box expand factor must be positive, got {expand}')
     inside = masks > threshold
+    if peak_region:
+        inside = peak_regions(masks, inside)
     height, width = inside.shape[-2:]
     rows = inside.any(dim=-1)
     cols = inside.any(dim=-2)
