@@ -14,7 +14,7 @@ STAGE2_STEPS=${2:-1400}
 ROUND2_STAGE1_STEPS=${3:-1000}
 ROUND2_STAGE2_STEPS=${4:-900}
 CAMERA_STEPS=${5:-700}
-MOTION_STEPS=${6:-900}
+MOTION_STEPS=${6:-800}
 
 generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
   if [ ! -f "$1/samples/meta.json" ]; then
