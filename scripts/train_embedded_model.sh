@@ -1,11 +1,12 @@
 #!/bin/bash
 # Reproduce the bundled model models/tiny_synthetic on a CPU (docs/model_card.md): synthetic
-# training and held-out data, Stage I, Stage II, a second round of both stages, then round 3:
-# the camera phase and a Stage II "motion" round (2 CPU processes from round 2 on,
-# DistributedDataParallel), export, evaluation. Every step resumes: run it again after an
-# interruption and it continues where it stopped. Outputs go to runs/ (ignored by git).
+# training and held-out data, Stage I, Stage II, a second round of both stages, round 3 (the
+# camera phase and a Stage II "motion" round) and round 4 (Stage I heads, backbone frozen), on
+# 2 CPU processes from round 2 on (DistributedDataParallel), then export and evaluation. Every
+# step resumes: run it again after an interruption and it continues where it stopped. Outputs
+# go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
-# [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS]]]]]]
+# [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS]]]]]]]
 set -eo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
@@ -15,6 +16,7 @@ ROUND2_STAGE1_STEPS=${3:-1000}
 ROUND2_STAGE2_STEPS=${4:-900}
 CAMERA_STEPS=${5:-700}
 MOTION_STEPS=${6:-800}
+HEADS_STEPS=${7:-500}
 
 generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
   if [ ! -f "$1/samples/meta.json" ]; then
@@ -63,8 +65,12 @@ train_stage 2 runs/tiny_camera --config config/train_tiny_camera.yaml --steps "$
   --init runs/tiny_stage2b/checkpoints/final/model
 train_stage 2 runs/tiny_stage2c --config config/train_tiny_stage2_motion.yaml \
   --steps "$MOTION_STEPS" --init runs/tiny_camera/checkpoints/final/model
+# Round 4: Stage I on the masks and the hand branch, backbone and camera frozen (recovers part
+# of the detection that round 3's camera weight cost).
+train_stage 2 runs/tiny_stage1d --config config/train_tiny_stage1_heads.yaml \
+  --steps "$HEADS_STEPS" --init runs/tiny_stage2c/checkpoints/final/model
 
-python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage2c/checkpoints/final/model \
+python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1d/checkpoints/final/model \
   --out models/tiny_synthetic --train-sequences runs/synth_train --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --save-predictions runs/eval_heldout | tee runs/eval_heldout.md

@@ -48,7 +48,9 @@ def test_out_of_range_jitter_is_a_config_error(scale: float, shift: float) -> No
 
 
 def test_the_shipped_motion_config_jitters_its_boxes() -> None:
-    """The tiny Stage II motion round jitters boxes; the camera phase (no hand loss) does not."""
+    """The motion and heads rounds jitter boxes; the camera phase (no hand loss) does not."""
     motion = load_train_config(named_train_config_path('tiny_stage2_motion'))
     assert motion.box_jitter.enabled and motion.peak_region_boxes
+    heads = load_train_config(named_train_config_path('tiny_stage1_heads'))
+    assert heads.box_jitter.enabled and 'geometry.aggregator' in heads.optim.frozen
     assert not load_train_config(named_train_config_path('tiny_camera')).box_jitter.enabled
