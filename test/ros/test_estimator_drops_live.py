@@ -41,8 +41,11 @@ def test_drops_are_counted_when_the_input_outruns_the_model(tmp_path: Path) -> N
             running('record', ['-o', str(out), f'{NODE}/camera_pose', '/diagnostics'], env,
                     tmp_path / 'record.log') as recorder:
         assert wait_for_text(node_log, 'ready: engine', node, 120.0), node_log.read_text()
+        # The poses come within a second of the replay's start: the recorder must be subscribed.
+        assert wait_for_text(tmp_path / 'record.log', f'recording {NODE}/camera_pose', recorder,
+                             30.0), (tmp_path / 'record.log').read_text()
         replay = start('replay', [str(SAMPLE_BAG), '--rate', '0', '--wait-for-subscribers',
-                                  '20', '--topics', '/camera/image_raw/compressed',
+                                  '20', '--delay', '1', '--topics', '/camera/image_raw/compressed',
                                   '/camera/camera_info'], env, tmp_path / 'replay.log')
         assert replay.wait(120) == 0, (tmp_path / 'replay.log').read_text()
         time.sleep(4.0)  # the last frame's inference and a diagnostics period
