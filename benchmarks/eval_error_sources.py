@@ -66,6 +66,8 @@ def sequence_figures(path: str, engine: StreamingEngine) -> dict:
     steps = np.swapaxes(true_rotations[:-1], -1, -2) @ true_rotations[1:]
     our_steps = np.swapaxes(rotations[:-1], -1, -2) @ rotations[1:]
     step_error = rotation_angle_deg(np.swapaxes(our_steps, -1, -2) @ steps)
+    error[~pred.has_result] = np.nan  # frames without a result are not scored
+    step_error[~(pred.has_result[:-1] & pred.has_result[1:])] = np.nan
     return {'name': sequence.name, 'pairs': int(pairs.sum()), 'scores': scores,
             'rotation_error_deg': error.tolist(),
             'step_error_deg': [0.0, *step_error.tolist()],
@@ -87,8 +89,8 @@ def summary(figures: list[dict]) -> dict:
         if errors:
             last = min(end, max(len(f['true_step_deg']) for f in figures))
             ranges.append({'frames': f'{start}-{last}',
-                           'rotation_error_deg': float(np.mean(errors)),
-                           'step_error_deg': float(np.mean(step_errors)),
+                           'rotation_error_deg': float(np.nanmean(errors)),
+                           'step_error_deg': float(np.nanmean(step_errors)),
                            'true_step_deg': float(np.mean(steps))})
     return {'placements': placements, 'rotation_by_frames': ranges}
 
