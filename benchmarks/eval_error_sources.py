@@ -20,13 +20,15 @@ than holding still. Figures only; nothing is asserted.
 import json
 import sys
 
+from infinihand_ros.core.geometry import rotation_angle_deg
+from infinihand_ros.core.geometry import transform_points
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.eval.cli import build_parser
 from infinihand_ros.eval.cli import engine_config
 from infinihand_ros.eval.metrics import world_space
 from infinihand_ros.eval.runner import eval_frames
-from infinihand_ros.eval.runner import matched_pairs
 from infinihand_ros.eval.runner import run_engine
+from infinihand_ros.eval.runner import scored_pairs
 from infinihand_ros.eval.sequences import open_eval_sequence
 import numpy as np
 
@@ -35,43 +37,31 @@ FRAME_RANGES = ((1, 5), (5, 10), (10, 20), (20, 40), (40, 80), (80, 10_000))
 PLACEMENTS = ('ours', 'true camera', 'true hands')
 
 
-def place(joints_cam: np.ndarray, T_world_cam: np.ndarray) -> np.ndarray:
-    """Return world joints (T, 2, 21, 3) of camera-frame joints with per-frame poses (T, 4, 4)."""
-    rotation, translation = T_world_cam[:, None, None, :3, :3], T_world_cam[:, None, None, :3, 3]
-    return (rotation @ joints_cam[..., None])[..., 0] + translation
-
-
-def rotation_angle_deg(rotations: np.ndarray) -> np.ndarray:
-    """Return the angle (degrees) of each rotation matrix (..., 3, 3)."""
-    cosine = (np.trace(rotations, axis1=-2, axis2=-1) - 1.0) / 2.0
-    return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
-
-
 def sequence_figures(path: str, engine: StreamingEngine) -> dict:
     """Run one sequence; return W/WA-MPJPE per placement and per-frame rotation errors."""
     sequence = open_eval_sequence(path)
     truth = sequence.truth
     pred = run_engine(sequence, engine)
     engine.reset()
-    pairs = matched_pairs(eval_frames(sequence, pred)) & pred.has_result[:, None]
-    pairs &= np.isfinite(pred.joints_world).all(axis=(-2, -1))
+    pairs = scored_pairs(eval_frames(sequence, pred), pred)
     posed = np.where(pred.has_result[:, None, None], pred.T_world_cam, truth.T_world_cam)
     worlds = {'ours': pred.joints_world,
-              'true camera': place(np.nan_to_num(pred.joints_cam), truth.T_world_cam),
-              'true hands': place(truth.joints_cam, posed)}
+              'true camera': transform_points(truth.T_world_cam[:, None],
+                                              np.nan_to_num(pred.joints_cam)),
+              'true hands': transform_points(posed[:, None], truth.joints_cam)}
     scores = {name: world_space(joints, truth.joints_world, pairs) if pairs.any() else {}
               for name, joints in worlds.items()}
     rotations, true_rotations = posed[:, :3, :3], truth.T_world_cam[:, :3, :3]
-    error = rotation_angle_deg(np.swapaxes(rotations, -1, -2) @ true_rotations)
+    error = rotation_angle_deg(rotations, true_rotations)
     steps = np.swapaxes(true_rotations[:-1], -1, -2) @ true_rotations[1:]
     our_steps = np.swapaxes(rotations[:-1], -1, -2) @ rotations[1:]
-    step_error = rotation_angle_deg(np.swapaxes(our_steps, -1, -2) @ steps)
+    step_error = rotation_angle_deg(our_steps, steps)
     error[~pred.has_result] = np.nan  # frames without a result are not scored
     step_error[~(pred.has_result[:-1] & pred.has_result[1:])] = np.nan
     return {'name': sequence.name, 'pairs': int(pairs.sum()), 'scores': scores,
             'rotation_error_deg': error.tolist(),
             'step_error_deg': [0.0, *step_error.tolist()],
-            'true_step_deg': [0.0, *rotation_angle_deg(steps).tolist()]}
+            'true_step_deg': [0.0, *rotation_angle_deg(steps, np.eye(3)).tolist()]}
 
 
 def summary(figures: list[dict]) -> dict:

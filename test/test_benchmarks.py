@@ -1,11 +1,11 @@
-"""Benchmark scripts: bad arguments refused with one line; the error-source placement."""
+"""Benchmark scripts: bad arguments refused with one line; the error-source summary."""
 
 import importlib.util
 from pathlib import Path
 import subprocess
 import sys
 
-import numpy as np
+import pytest
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / 'benchmarks'
 
@@ -27,16 +27,22 @@ def _error_sources():
     return module
 
 
-def test_error_sources_places_camera_joints_with_each_frames_pose() -> None:
-    """place() applies frame t's camera-to-world pose; the angle of a 90 deg turn is 90."""
+def test_error_sources_summary_averages_sequences_and_frame_ranges() -> None:
+    """Placements average over sequences; frame ranges pool frames, skipping unscored ones."""
     sources = _error_sources()
-    turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])  # 90 deg about z
-    T = np.stack([np.eye(4), np.eye(4)])
-    T[1, :3, :3], T[1, :3, 3] = turn, [1.0, 2.0, 3.0]
-    joints = np.zeros((2, 2, 21, 3))
-    joints[..., 0] = 0.5  # every joint at x = 0.5 m in the camera frame
-    world = sources.place(joints, T)
-    np.testing.assert_allclose(world[0], joints[0])
-    np.testing.assert_allclose(world[1], np.broadcast_to([1.0, 2.5, 3.0], (2, 21, 3)))
-    np.testing.assert_allclose(sources.rotation_angle_deg(np.stack([np.eye(3), turn])),
-                               [0.0, 90.0], atol=1e-9)
+    nan = float('nan')
+
+    def figures(w_mpjpe: float, errors: list[float]) -> dict:
+        scores = {'W-MPJPE': w_mpjpe, 'WA-MPJPE': w_mpjpe / 2}
+        return {'scores': dict.fromkeys(sources.PLACEMENTS, scores),
+                'rotation_error_deg': errors, 'step_error_deg': errors,
+                'true_step_deg': [0.0] + [1.0] * (len(errors) - 1)}
+
+    result = sources.summary([figures(100.0, [0.0, 2.0, nan, 4.0, 4.0, 8.0]),
+                              figures(300.0, [0.0, 6.0, 6.0, 6.0, 6.0, 6.0])])
+    assert result['placements']['ours'] == {'W-MPJPE': 200.0, 'WA-MPJPE': 100.0}
+    first, second = result['rotation_by_frames']
+    # frames 1-4: (2 + 4 + 4) of the first sequence (its NaN skipped), 4 x 6 of the second
+    assert first == {'frames': '1-5', 'rotation_error_deg': pytest.approx(34.0 / 7),
+                     'step_error_deg': pytest.approx(34.0 / 7), 'true_step_deg': 1.0}
+    assert second['frames'] == '5-6' and second['rotation_error_deg'] == 7.0

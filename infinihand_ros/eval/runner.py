@@ -158,6 +158,15 @@ def matched_pairs(frames: Sequence[EvalFrame]) -> np.ndarray:
     return out
 
 
+def scored_pairs(frames: Sequence[EvalFrame], pred: Predictions) -> np.ndarray:
+    """Return (T, 2) bool: the hand-frame pairs every world-space figure is scored on.
+
+    A side's target was matched in ``frames`` (appendix A) and our hand was placed in the world.
+    """
+    placed = np.isfinite(pred.joints_world).all(axis=(-2, -1))
+    return matched_pairs(frames) & placed & pred.has_result[:, None]
+
+
 def _world(pred_joints: np.ndarray, gt_joints: np.ndarray, pairs: np.ndarray) -> Metrics:
     """World-space metrics, NaN when no pair is scored."""
     if not pairs.any():
@@ -170,8 +179,7 @@ def score_sequence(sequence: EvalSequence, pred: Predictions,
     """Score ``pred`` and the baselines on ``sequence`` (see the module docstring)."""
     truth = sequence.truth
     frames = eval_frames(sequence, pred)
-    placed = np.isfinite(pred.joints_world).all(axis=(-2, -1))
-    pairs = matched_pairs(frames) & placed & pred.has_result[:, None]
+    pairs = scored_pairs(frames, pred)
     posed = pred.has_result
     ours = _world(pred.joints_world, truth.joints_world, pairs)
     first_pose = pred.T_world_cam[np.argmax(posed)]
