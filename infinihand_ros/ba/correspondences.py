@@ -153,7 +153,10 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
             track links the keyframes.
 
     Returns:
-        A problem with relative-pose priors between consecutive keyframes from the raw poses.
+        A problem with relative-pose priors between consecutive keyframes from the initial
+        poses: earlier BA results for keyframes refined before, the estimator's motion since
+        the newest refined keyframe for new ones (raw poses far apart carry the network's
+        drift between them).
 
     """
     if cache is not None and cache.config != tracking:
@@ -183,7 +186,7 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
     new_id[host_track[usable]] = np.arange(np.count_nonzero(usable))
     observed = ~first & (new_id[track] >= 0)
     inv_depth = 1.0 / depth[usable]
-    raw = np.stack([k.T_world_cam for k in keyframes])
+    initial = np.asarray(T_world_cam, dtype=np.float64)
     pairs = np.c_[np.arange(len(keyframes) - 1), np.arange(1, len(keyframes))]
     return BAProblem(
         T_world_cam=np.asarray(T_world_cam, dtype=np.float64),
@@ -192,4 +195,4 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
         host_xy=host_xy[usable], inv_depth=inv_depth, prior_inv_depth=inv_depth,
         prior_sigma=solver.depth_prior_rel_sigma * inv_depth, obs_track=new_id[track[observed]],
         obs_frame=frame[observed], obs_xy=xy[observed], obs_weight=np.ones(observed.sum()),
-        prior_pairs=pairs, prior_T_rel=np.linalg.inv(raw[pairs[:, 0]]) @ raw[pairs[:, 1]])
+        prior_pairs=pairs, prior_T_rel=np.linalg.inv(initial[pairs[:, 0]]) @ initial[pairs[:, 1]])
