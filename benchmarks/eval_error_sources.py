@@ -3,9 +3,9 @@
     python benchmarks/eval_error_sources.py --sequences runs/heldout/* [--checkpoint CK] [--json]
 
 Takes the options of ``python -m infinihand_ros.eval`` (``--checkpoint``, ``--engine-config``,
-``--mode``, ``--ba``, ``--json``; the others are ignored), runs the engine over each sequence as
-it does (the same appendix-A matching and hand-frame pairs) and scores three placements of the
-hands in the world with the evaluation's W-MPJPE and WA-MPJPE:
+``--mode``, ``--ba``, ``--poses``, ``--json``; the others are ignored), runs the engine over each
+sequence as it does (the same appendix-A matching and hand-frame pairs) and scores three
+placements of the hands in the world with the evaluation's W-MPJPE and WA-MPJPE:
 
 - ``ours``: our camera-frame hands with our camera (the evaluation's figure);
 - ``true camera``: our camera-frame hands with the ground-truth camera (the hands' share);
@@ -37,11 +37,11 @@ FRAME_RANGES = ((1, 5), (5, 10), (10, 20), (20, 40), (40, 80), (80, 10_000))
 PLACEMENTS = ('ours', 'true camera', 'true hands')
 
 
-def sequence_figures(path: str, engine: StreamingEngine) -> dict:
+def sequence_figures(path: str, engine: StreamingEngine, poses: str = 'final') -> dict:
     """Run one sequence; return W/WA-MPJPE per placement and per-frame rotation errors."""
     sequence = open_eval_sequence(path)
     truth = sequence.truth
-    pred = run_engine(sequence, engine)
+    pred = run_engine(sequence, engine, poses)
     engine.reset()
     pairs = scored_pairs(eval_frames(sequence, pred), pred)
     posed = np.where(pred.has_result[:, None, None], pred.T_world_cam, truth.T_world_cam)
@@ -101,7 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     """Run the benchmark; return the exit code."""
     args = build_parser().parse_args(argv)
     with StreamingEngine(engine_config(args)) as engine:
-        figures = [sequence_figures(path, engine) for path in sorted(args.sequences)]
+        figures = [sequence_figures(path, engine, args.poses) for path in sorted(args.sequences)]
     result = summary(figures)
     if args.json:
         print(json.dumps(result))

@@ -26,6 +26,8 @@ MIN_KLT_WINDOW_PX: Final = 3
 ORB_DESCRIPTOR_BITS: Final = 256
 #: Largest CPU niceness of the BA process (Linux's lowest priority).
 MAX_NICENESS: Final = 19
+#: ``ba.worker.when_behind`` values: drop the oldest waiting selection, or wait for room.
+WHEN_BEHIND: Final = ('drop', 'wait')
 
 
 def _require_finite_fields(owner: str, config: object) -> None:
@@ -184,18 +186,26 @@ class WorkerConfig:
     Attributes:
         niceness: CPU niceness of the BA process (0..19); 19 keeps the stream's latency but lets
             BA fall behind on a saturated CPU, 0 shares the CPU evenly (offline conversion).
-        max_queued_selections: pool selections allowed to wait; older ones are dropped.
+        max_queued_selections: pool selections allowed to wait for the BA process.
+        when_behind: what a new selection does when that many already wait: ``drop`` the
+            oldest waiting one (live streams: the newest poses get refined, the stream never
+            waits) or ``wait`` for room (offline runs: every selection is refined; the stream
+            waits for BA).
 
     """
 
     niceness: int = 19
     max_queued_selections: int = 2
+    when_behind: str = 'drop'
 
     def __post_init__(self) -> None:
         if not 0 <= self.niceness <= MAX_NICENESS:
             raise ConfigError(f'ba.worker.niceness: must be in 0..{MAX_NICENESS}, got '
                               f'{self.niceness}')
         require_at_least('ba.worker', 1, max_queued_selections=self.max_queued_selections)
+        if self.when_behind not in WHEN_BEHIND:
+            raise ConfigError(f'ba.worker.when_behind: must be one of {", ".join(WHEN_BEHIND)}, '
+                              f'got {self.when_behind!r}')
 
 
 @dataclass(frozen=True)

@@ -132,7 +132,8 @@ class BundleAdjustmentWorker:
     The BA process runs with one torch thread, single-threaded OpenCV and the configured
     niceness (default 19: BA takes the CPU time the stream leaves); none of that touches the
     calling process. When the worker falls behind, the oldest queued pool selection is dropped
-    (counted in ``dropped``): the newest selections get refined and memory stays bounded. A
+    (counted in ``dropped``): the newest selections get refined and memory stays bounded; with
+    ``worker.when_behind: wait`` the submitter waits for room instead (offline runs). A
     failed call, a callback that raises or a BA process that dies is logged and counted, and
     the next call runs (in a new process if needed); ``statistics`` tells what happened.
 
@@ -223,16 +224,16 @@ class BundleAdjustmentWorker:
         self._enqueue(_Selection(tuple(keyframes), tuple(int(i) for i in retained_ids)))
 
     def _enqueue(self, item: 'BARequest | _Selection') -> None:
-        """Append ``item``, dropping the oldest queued selections beyond the limit."""
+        """Append ``item``; past the selection limit drop the oldest or wait (``when_behind``)."""
         with self._wake:
-            if self._closing:
-                raise InputError('BA worker: submit after close(); create a new worker')
-            if self._fatal or not self._thread.is_alive():
-                raise BAWorkerError(f'BA worker failed ({self._last_error}); nothing was '
-                                    'queued; create a new worker')
+            self._check_accepting()
             if isinstance(item, _Selection):
                 limit = self.config.worker.max_queued_selections
-                selections = [queued for queued in self._queued if isinstance(queued, _Selection)]
+                if self.config.worker.when_behind == 'wait':
+                    while self._queued_selections() >= limit and not self._stopped():
+                        self._wake.wait()
+                    self._check_accepting()
+                selections = self._queued_selections_list()
                 for stale in selections[:max(0, len(selections) - limit + 1)]:
                     self._queued.remove(stale)
                     self._counts['dropped'] += 1
@@ -240,7 +241,7 @@ class BundleAdjustmentWorker:
                                 [k.frame_id for k in stale.keyframes])
             self._queued.append(item)
             self._counts['submitted'] += 1
-            self._wake.notify()
+            self._wake.notify_all()
 
     def poll(self) -> list[BAOutput]:
         """Return the results finished since the last poll, oldest first (never blocks)."""
@@ -256,6 +257,37 @@ class BundleAdjustmentWorker:
         with self._wake:
             return len(self._queued) + int(self._busy)
 
+    def wait_idle(self, timeout_s: float | None = None) -> bool:
+        """Wait until no request is queued or running (or the worker stopped).
+
+        Returns:
+            True when idle, False when ``timeout_s`` ran out first.
+
+        """
+        with self._wake:
+            return self._wake.wait_for(
+                lambda: not (self._queued or self._busy) or self._stopped(), timeout_s)
+
+    def _check_accepting(self) -> None:
+        """Raise unless items may be queued; the caller holds ``self._wake``."""
+        if self._closing:
+            raise InputError('BA worker: submit after close(); create a new worker')
+        if self._fatal or not self._thread.is_alive():
+            raise BAWorkerError(f'BA worker failed ({self._last_error}); nothing was '
+                                'queued; create a new worker')
+
+    def _stopped(self) -> bool:
+        """Return True once the worker failed or its thread ended (caller holds the lock)."""
+        return self._fatal or not self._thread.is_alive()
+
+    def _queued_selections_list(self) -> list['_Selection']:
+        """Return the waiting pool selections, oldest first (caller holds the lock)."""
+        return [queued for queued in self._queued if isinstance(queued, _Selection)]
+
+    def _queued_selections(self) -> int:
+        """Return how many pool selections wait (caller holds the lock)."""
+        return len(self._queued_selections_list())
+
     def close(self, timeout_s: float | None = None) -> None:
         """Finish the queued requests, then stop the thread and the BA process.
 
@@ -267,7 +299,7 @@ class BundleAdjustmentWorker:
         """
         with self._wake:
             self._closing = True
-            self._wake.notify()
+            self._wake.notify_all()
         self._thread.join(timeout_s)
         if self._thread.is_alive():
             with self._wake:
@@ -321,11 +353,13 @@ class BundleAdjustmentWorker:
                     return
                 item = self._queued.popleft()
                 self._busy = True
+                self._wake.notify_all()  # room for a producer waiting in ``_enqueue``
             try:
                 crashes = 0 if self._serve(item) else crashes + 1
             finally:
                 with self._wake:
                     self._busy = False
+                    self._wake.notify_all()  # ``wait_idle`` callers
             if crashes >= MAX_CONSECUTIVE_CRASHES:
                 raise BAProcessCrashError(f'the BA process died in {crashes} calls in a row; '
                                           f'last: {self._last_error}')
@@ -338,6 +372,7 @@ class BundleAdjustmentWorker:
             self._last_error = message
             self._counts['dropped'] += len(self._queued)
             self._queued.clear()
+            self._wake.notify_all()
 
     def _serve(self, request: 'BARequest | _Selection') -> bool:
         """Run one item; log and count a failure. Return False when the BA process died."""

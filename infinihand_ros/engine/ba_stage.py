@@ -53,6 +53,17 @@ class BundleAdjustmentStage:
         if oldest is not None:
             track.corrections.prune(min([oldest, *stamps]))
 
+    def settle(self, track: PoseTrack, timeout_s: float | None = None) -> bool:
+        """Wait for every queued BA call, then hand the results to ``track``.
+
+        Returns:
+            True when BA finished everything it was given, False when ``timeout_s`` ran out.
+
+        """
+        idle = self.worker.wait_idle(timeout_s)
+        self.fold_in(track)
+        return idle
+
     def offer(self, record: CameraSpaceFrame, pose: CameraPose, depth_m: np.ndarray | None
               ) -> None:
         """Feed a keyframe (with its scaled pose and metric depth) to the pool; never waits."""

@@ -20,9 +20,11 @@ Threading contract: one caller at a time. ``push``, ``flush``, ``reset`` and ``c
 
 from collections import deque
 from collections.abc import Iterator
+from collections.abc import Sequence
 from concurrent.futures import Future
 from concurrent.futures import ThreadPoolExecutor
 import contextlib
+import dataclasses
 import threading
 
 from infinihand_ros.core.datatypes import FrameResult
@@ -140,6 +142,26 @@ class StreamingEngine:
             if self._pending:
                 self._run_block()
             return self._collect(wait=True)
+
+    def refined(self, results: Sequence[FrameResult],
+                timeout_s: float | None = None) -> list[FrameResult]:
+        """Return ``results`` on the final trajectory, for offline runs (after ``flush()``).
+
+        Waits for the BA calls still queued (all of them with ``ba.worker.when_behind: wait``;
+        at most ``timeout_s``), then gives every frame the pose the track holds now: all BA
+        corrections, none blended in, and the final metric scale, with its hands and depth
+        placed again. Live results are what was known when each frame was published; these
+        are what is known at the end. Without BA only the scale changes. Frames older than the
+        track's ``pose_track.capacity`` are returned unchanged.
+
+        Raises:
+            EngineStateError: after ``close()`` or when another thread is inside the engine.
+
+        """
+        with self._exclusive():
+            if self._ba is not None:
+                self._ba.settle(self.pose_track, timeout_s)
+            return [self._on_final_trajectory(result) for result in results]
 
     def reset(self) -> None:
         """Start a new sequence: drop held-back frames, memories, the pose track and BA."""
@@ -282,6 +304,21 @@ class StreamingEngine:
             timestamp_ns=frame.timestamp_ns, frame_index=frame.index,
             camera_pose=best.camera_pose, intrinsics=record.intrinsics,
             hands=place_in_world(record.hands, best.camera_pose), is_keyframe=frame.keyframe,
+            depth=depth, metric_scale=best.scale,
+            raw_camera_pose=best.scaled_pose if self._ba is not None else None,
+            pose_version=best.version)
+
+    def _on_final_trajectory(self, result: FrameResult) -> FrameResult:
+        """Return ``result`` with the track's current (not live) pose, scale and hands."""
+        try:
+            best = self.pose_track.best(result.frame_index, live=False)
+        except KeyError:  # no longer in the track
+            return result
+        depth = (None if result.depth is None
+                 else result.depth * (best.scale / result.metric_scale))
+        return dataclasses.replace(
+            result, camera_pose=best.camera_pose, hands=place_in_world(result.hands,
+                                                                       best.camera_pose),
             depth=depth, metric_scale=best.scale,
             raw_camera_pose=best.scaled_pose if self._ba is not None else None,
             pose_version=best.version)

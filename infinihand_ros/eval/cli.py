@@ -27,6 +27,7 @@ from infinihand_ros.eval.report import markdown_tables
 from infinihand_ros.eval.report import sequence_table
 from infinihand_ros.eval.runner import evaluate
 from infinihand_ros.eval.runner import Evaluation
+from infinihand_ros.eval.runner import POSES
 from infinihand_ros.eval.runner import SequenceEvaluation
 from infinihand_ros.eval.sequences import EvalSequence
 from infinihand_ros.eval.sequences import open_eval_sequence
@@ -49,8 +50,13 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--engine-config', help='engine YAML (default: config/engine.yaml)')
     parser.add_argument('--mode', choices=('per_frame', 'windowed'),
                         help="engine mode (default: the engine config's)")
-    parser.add_argument('--ba', action='store_true', help='run bundle adjustment '
-                                                          '(config/ba.yaml)')
+    parser.add_argument('--ba', action='store_true',
+                        help='run bundle adjustment (config/ba.yaml; the stream waits for BA '
+                             'instead of dropping pool selections, as an offline run should)')
+    parser.add_argument('--poses', choices=POSES, default='final',
+                        help='final (default): score the trajectory known at the end (BA '
+                             'corrections and the final metric scale on every frame); live: '
+                             'each frame as the engine published it')
     parser.add_argument('--mean-pose', help=f'JSON with the training mean articulation '
                                             f'(default: {MEAN_POSE_FILE} in the checkpoint; '
                                             "else the evaluated sequences' own mean)")
@@ -71,7 +77,9 @@ def engine_config(args: argparse.Namespace) -> EngineConfig:
     if args.mode is not None:
         config = dataclasses.replace(config, mode=args.mode)
     if args.ba:
-        config = dataclasses.replace(config, bundle_adjustment=load_ba_config())
+        ba = load_ba_config()
+        ba = dataclasses.replace(ba, worker=dataclasses.replace(ba.worker, when_behind='wait'))
+        config = dataclasses.replace(config, bundle_adjustment=ba)
     return config
 
 
@@ -120,6 +128,7 @@ class EvaluationPlan:
     sequences: list[EvalSequence]
     mean_pose: np.ndarray
     mean_pose_source: str
+    poses: str
 
 
 def prepare(args: argparse.Namespace) -> EvaluationPlan:
@@ -133,7 +142,7 @@ def prepare(args: argparse.Namespace) -> EvaluationPlan:
     if args.save_predictions is not None:
         check_writable_location(args.save_predictions, '--save-predictions')
     joints, source = mean_pose_joints(args.mean_pose, config, sequences)
-    return EvaluationPlan(config, sequences, joints, source)
+    return EvaluationPlan(config, sequences, joints, source, args.poses)
 
 
 def execute(plan: EvaluationPlan, save_to: Path | None
@@ -151,10 +160,10 @@ def execute(plan: EvaluationPlan, save_to: Path | None
 
     config = plan.config
     evaluation = evaluate(plan.sequences, lambda: StreamingEngine(config), plan.mean_pose,
-                          on_sequence)
+                          on_sequence, plan.poses)
     settings = {'checkpoint': config.model.checkpoint, 'mode': config.mode,
                 'bundle_adjustment': config.bundle_adjustment is not None,
-                'mean_pose': plan.mean_pose_source}
+                'poses': plan.poses, 'mean_pose': plan.mean_pose_source}
     return evaluation, settings
 
 

@@ -36,6 +36,7 @@ def test_package_settings_load() -> None:
     ('corrections', 'blend_s', '-0.1', 'ba.corrections.blend_s: must be >= 0, got -0.1'),
     ('worker', 'niceness', '20', r'ba.worker.niceness: must be in 0..19, got 20'),
     ('worker', 'max_queued_selections', '0', 'ba.worker.max_queued_selections: must be >= 1'),
+    ('worker', 'when_behind', 'block', 'ba.worker.when_behind: must be one of drop, wait'),
 ])
 def test_values_that_break_every_call_are_refused_at_load(tmp_path: Path, section: str,
                                                           key: str, value: str,

@@ -81,6 +81,49 @@ def test_a_busy_worker_drops_the_oldest_queued_selections(keyframes: list) -> No
     assert worker.failures == 0
 
 
+def test_a_busy_worker_in_wait_mode_holds_the_submitter_and_drops_nothing(
+        keyframes: list) -> None:
+    """With ``when_behind: wait`` a full queue makes submit_selection wait for room."""
+    started, release = threading.Event(), threading.Event()
+    received = []
+
+    def callback(output) -> None:
+        received.append(output.frame_ids.tolist())
+        started.set()
+        assert release.wait(timeout=60.0)
+
+    config = BAConfig(worker=WorkerConfig(when_behind='wait'))
+    with BundleAdjustmentWorker(config, callback) as worker:
+        worker.submit_selection(keyframes[:3])
+        assert started.wait(timeout=60.0)
+        for first in (1, 2):  # fill the queue (limit 2) behind the running call
+            worker.submit_selection(keyframes[first:first + 3])
+        third = threading.Thread(target=worker.submit_selection, args=(keyframes[2:],))
+        third.start()
+        third.join(timeout=1.0)
+        assert third.is_alive(), 'submit_selection returned although the queue was full'
+        assert worker.dropped == 0 and worker.pending() == 3
+        release.set()
+        third.join(timeout=60.0)
+        assert not third.is_alive()
+        assert worker.wait_idle(timeout_s=120.0)
+        assert worker.pending() == 0
+    assert received == [[0, 2, 4], [2, 4, 6], [4, 6, 8], [4, 6, 8]]
+    assert worker.dropped == 0 and worker.failures == 0
+
+
+def test_wait_idle_times_out_while_a_call_runs() -> None:
+    """wait_idle(timeout_s) returns False while BA is still busy."""
+    worker = _SlowWorker(BAConfig())
+    try:
+        worker.submit(plan_request(_blank_keyframes(), CorrectionTrack()))
+        start = time.monotonic()
+        assert not worker.wait_idle(timeout_s=0.5)
+        assert time.monotonic() - start < 10.0
+    finally:
+        worker.close(timeout_s=1.0)
+
+
 def test_plan_request_fixes_the_oldest_refined_keyframe(keyframes: list) -> None:
     """First call: the oldest is fixed; later: the oldest keyframe refined before."""
     corrections = CorrectionTrack()

@@ -5,10 +5,13 @@ import threading
 import time
 
 from infinihand_ros.ba.config import BAConfig
+from infinihand_ros.ba.config import PoolConfig
+from infinihand_ros.ba.config import WorkerConfig
 from infinihand_ros.core.errors import EngineStateError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.engine.config import EngineConfig
+from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.pose_track import PoseTrackConfig
@@ -300,3 +303,58 @@ def test_a_size_change_mid_stream_is_refused(model, frames: list) -> None:
     with pytest.raises(InputError, match='320x240 px'):
         engine.push(frames[1].rgb[:200, :300], frames[1].timestamp_ns)
     assert engine.statistics['frames_pushed'] == 1
+
+
+def test_refined_results_carry_the_final_scale_without_ba(model, frames: list) -> None:
+    """Without BA, the final trajectory is the live one at the track's final metric scale."""
+    with StreamingEngine(CONFIG, model) as engine:
+        live = _run(engine, frames)
+        final = engine.refined(live)
+        scale = engine.pose_track.scale
+    assert len(final) == len(live)
+    for before, after in zip(live, final):
+        assert after.metric_scale == scale
+        np.testing.assert_allclose(after.camera_pose.rotation, before.camera_pose.rotation,
+                                   atol=1e-9)
+        np.testing.assert_allclose(after.camera_pose.translation,
+                                   before.camera_pose.translation * scale / before.metric_scale,
+                                   atol=1e-9)
+        if before.depth is not None:
+            np.testing.assert_allclose(after.depth, before.depth * scale / before.metric_scale,
+                                       rtol=1e-6)
+        for hand_before, hand_after in zip(before.hands, after.hands):
+            np.testing.assert_array_equal(hand_after.joints_cam, hand_before.joints_cam)
+            np.testing.assert_allclose(hand_after.joints_world,
+                                       after.camera_pose.to_world(hand_after.joints_cam),
+                                       atol=1e-9)
+
+
+def test_refined_results_wait_for_ba_and_apply_every_correction(frames: list) -> None:
+    """With BA, refined() waits for the queued calls and gives each frame its corrected pose.
+
+    The pool triggers once over the 7 frames; the refined results carry that call's
+    correction in full (no blending). The bundled model boxes the hands (the untrained one's
+    boxes can cover the whole image, leaving BA no pixel to track).
+    """
+    bundled = load_engine_config()
+    ba = BAConfig(pool=PoolConfig(trigger=4, stride=2),
+                  worker=WorkerConfig(niceness=0, when_behind='wait'))
+    config = replace(bundled, keyframe_interval=2, bundle_adjustment=ba)
+    with StreamingEngine(config) as engine:
+        live = _run(engine, frames)
+        final = engine.refined(live)
+        statistics = engine.statistics['ba']
+        track = engine.pose_track
+        stamps = np.array([result.timestamp_ns for result in live])
+        corrections = track.corrections.corrections(stamps)
+    assert statistics['submitted'] >= 1
+    assert statistics['folded_in'] == statistics['done'] == statistics['submitted']
+    assert statistics['dropped'] == 0 and statistics['failed'] == 0
+    assert not np.allclose(corrections, np.eye(4), atol=1e-9), 'BA changed nothing'
+    for before, after, correction in zip(live, final, corrections):
+        raw = track.scaled(before.frame_index).matrix()
+        np.testing.assert_allclose(after.raw_camera_pose.matrix(), raw, atol=1e-12)
+        np.testing.assert_allclose(after.camera_pose.matrix(), correction @ raw, atol=1e-6)
+        for hand in after.hands:
+            np.testing.assert_allclose(hand.joints_world,
+                                       after.camera_pose.to_world(hand.joints_cam), atol=1e-9)

@@ -17,6 +17,7 @@ from infinihand_ros.eval.prediction_files import write_predictions
 from infinihand_ros.eval.runner import aggregate
 from infinihand_ros.eval.runner import evaluate
 from infinihand_ros.eval.runner import Predictions
+from infinihand_ros.eval.runner import run_engine
 from infinihand_ros.eval.runner import score_sequence
 from infinihand_ros.eval.sequences import EvalSequence
 from infinihand_ros.eval.sequences import open_eval_sequence
@@ -143,6 +144,28 @@ def test_engine_run_files_round_trip_and_plots(sequence: EvalSequence, tmp_path:
     np.testing.assert_array_equal(back['joints_world'], pred.joints_world)
 
 
+def test_live_poses_are_the_published_ones_and_final_poses_the_refined(
+        sequence: EvalSequence) -> None:
+    """``poses='live'`` scores what push/flush returned; ``'final'`` what refined() returns."""
+    config = load_engine_config()
+
+    def engine_poses(refine: bool) -> np.ndarray:
+        with StreamingEngine(config) as engine:
+            results = [result for rgb, stamp, intrinsics in sequence.frames()
+                       for result in engine.push(rgb, stamp, intrinsics)]
+            results += engine.flush()
+            if refine:
+                results = engine.refined(results)
+        return np.stack([result.camera_pose.matrix() for result in results])
+
+    for poses, refine in (('live', False), ('final', True)):
+        with StreamingEngine(config) as engine:
+            pred = run_engine(sequence, engine, poses)
+        np.testing.assert_allclose(pred.T_world_cam, engine_poses(refine), atol=1e-9)
+    with StreamingEngine(config) as engine, pytest.raises(ValueError, match='poses: expected'):
+        run_engine(sequence, engine, 'smoothed')
+
+
 def test_broken_prediction_file_is_refused(tmp_path: Path) -> None:
     path = tmp_path / 'bad.npz'
     np.savez(path, joints_world=np.zeros((3, 2, 21, 3)), hand_valid=np.zeros((3, 2)),
@@ -163,6 +186,7 @@ def test_cli_json_line_files_and_usage_errors(synth_output: Path, tmp_path: Path
     assert set(report['baselines']) == {'static-camera', 'mean-hand', 'mean-pose'}
     assert report['sequences'][0]['name'] == 'seq_31'
     assert report['settings']['mean_pose'].startswith('training set (')  # the bundled model's
+    assert report['settings']['poses'] == 'final'
     assert read_predictions(out / 'seq_31.npz')['T_world_cam'].shape == (FRAMES, 4, 4)
     for name in ('seq_31_top_view.png', 'seq_31_errors.png'):
         image = cv2.imread(str(out / name))
