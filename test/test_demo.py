@@ -19,7 +19,8 @@ def test_demo_regenerates_the_sample_bag_and_evaluates(tmp_path: Path,
     report = capsys.readouterr().out
     assert 'ground truth identical to the bag: True' in report
     assert '150 x infinihand_msgs/msg/HandFrame' in report
-    assert 'Engine (tiny_synthetic, per_frame mode) on the bag' in report
+    assert ('Engine (tiny_synthetic, per_frame mode, bundle adjustment on, final trajectory) '
+            'on the bag') in report
     for table in ('**Detection**', '**World space**', '**Camera trajectory**'):
         assert table in report
     assert '| static-camera |' in report and '| mean-hand |' in report

@@ -219,6 +219,12 @@ class BAConfig:
     worker: WorkerConfig = field(default_factory=WorkerConfig)
 
 
+def for_offline_runs(config: BAConfig) -> BAConfig:
+    """Return ``config`` with the stream waiting for BA: every pool selection gets refined."""
+    return dataclasses.replace(config,
+                               worker=dataclasses.replace(config.worker, when_behind='wait'))
+
+
 def load_ba_config(path: str | Path | None = None) -> BAConfig:
     """Load the ``ba`` section of ``path`` (default: the package's ``config/ba.yaml``)."""
     return load_config(config_dir() / 'ba.yaml' if path is None else path, BA_SECTION,

@@ -16,6 +16,7 @@ import logging
 from pathlib import Path
 from typing import Protocol
 
+from infinihand_ros.ba.config import for_offline_runs
 from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.convert.bag_frames import read_bag_frames
@@ -79,10 +80,15 @@ class EpisodeSink(Protocol):
 
 
 def engine_config_for(config: ConvertConfig) -> EngineConfig:
-    """Return the engine settings of ``config.engine`` (mode and bundle adjustment applied)."""
+    """Return the engine settings of ``config.engine`` (mode and bundle adjustment applied).
+
+    A conversion is an offline run: with BA on, the stream waits for BA rather than dropping
+    pool selections (``ba.worker.when_behind: wait``).
+    """
     choice = config.engine
     base = load_engine_config(Path(choice.config).expanduser() if choice.config else None)
-    ba = (base.bundle_adjustment or load_ba_config()) if choice.bundle_adjustment else None
+    ba = (for_offline_runs(base.bundle_adjustment or load_ba_config())
+          if choice.bundle_adjustment else None)
     return replace(base, mode=choice.mode, bundle_adjustment=ba)
 
 

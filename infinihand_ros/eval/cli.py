@@ -13,6 +13,7 @@ import logging
 from pathlib import Path
 import sys
 
+from infinihand_ros.ba.config import for_offline_runs
 from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.errors import InfiniHandError
@@ -77,9 +78,8 @@ def engine_config(args: argparse.Namespace) -> EngineConfig:
     if args.mode is not None:
         config = dataclasses.replace(config, mode=args.mode)
     if args.ba:
-        ba = load_ba_config()
-        ba = dataclasses.replace(ba, worker=dataclasses.replace(ba.worker, when_behind='wait'))
-        config = dataclasses.replace(config, bundle_adjustment=ba)
+        config = dataclasses.replace(config,
+                                     bundle_adjustment=for_offline_runs(load_ba_config()))
     return config
 
 

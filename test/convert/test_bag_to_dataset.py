@@ -22,6 +22,7 @@ from infinihand_ros.convert.cli import EXIT_OK
 from infinihand_ros.convert.cli import EXIT_USAGE
 from infinihand_ros.convert.cli import main
 from infinihand_ros.convert.cli import REPORT_FILE
+from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.config import VideoSettings
 from infinihand_ros.convert.estimates_bag import HAND_FRAME_TOPIC
 from infinihand_ros.convert.estimates_bag import MARKERS_TOPIC
@@ -268,3 +269,12 @@ def test_time_windows_with_bundle_adjustment(synth_bags: list[Path], tmp_path: P
     assert all(r['bundle_adjustment'] is not None for r in reports)
     _check_dataset(output)
     assert [e['length'] for e in _read_dataset(output)[1]] == [3, 3]
+
+
+def test_conversion_waits_for_ba_instead_of_dropping(tmp_path: Path) -> None:
+    """A conversion is offline: with BA on, every pool selection is refined (none dropped)."""
+    with_ba = load_convert_config(fast_config(tmp_path / 'ba.yaml',
+                                              engine={'bundle_adjustment': True}))
+    without = load_convert_config(fast_config(tmp_path / 'plain.yaml'))
+    assert run_module.engine_config_for(with_ba).bundle_adjustment.worker.when_behind == 'wait'
+    assert run_module.engine_config_for(without).bundle_adjustment is None
