@@ -2,14 +2,17 @@
 
 The frames are resampled to the dataset's fps first (``resample``); each source frame an output
 frame uses is pushed to the engine once, so the engine sees the stream at (at most) the output
-rate. Video frames and image statistics are written as frames arrive; only the small per-frame
-feature vectors are kept until the episode ends, when ``action`` (the state ``action_offset``
-frames later; the last frames repeat the final state) can be filled in.
+rate. Video frames and image statistics are written as frames arrive; the engine's results
+(without depth maps) are kept until the episode ends, when they are placed on the final
+trajectory (``StreamingEngine.refined``: every BA correction, the final metric scale) and turned
+into feature vectors and estimates, and ``action`` (the state ``action_offset`` frames later;
+the last frames repeat the final state) can be filled in.
 """
 
 from collections import Counter
 from collections.abc import Callable
 from collections.abc import Iterable
+import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 import time
@@ -117,6 +120,7 @@ def convert_episode(frames: Iterable[SourceFrame], engine: StreamingEngine,
     bag = None if typestore is None else EstimatesBagWriter(
         work_dir / ESTIMATES_FILE, typestore, config.estimates_path_length)
     collector = _Collector(config.dataset.invalid_fill, bag)
+    results: list[FrameResult] = []  # live results, placed on the final trajectory at the end
     push_of_slot: list[int] = []
     source_stamps: list[int] = []
     image_stats = ImageStats()
@@ -126,7 +130,7 @@ def convert_episode(frames: Iterable[SourceFrame], engine: StreamingEngine,
         with EpisodeVideoWriter(video_path, config.fps, config.video) as video:
             for out in resample(((f.timestamp_ns, f) for f in frames), config.fps):
                 if out.source_index != last_source:
-                    collector.add(_push(engine, out.item))
+                    results += _without_depth(_push(engine, out.item))
                     last_source = out.source_index
                     report.frames_used += 1
                 push_of_slot.append(report.frames_used - 1)
@@ -137,7 +141,8 @@ def convert_episode(frames: Iterable[SourceFrame], engine: StreamingEngine,
                     on_frame()
             if not push_of_slot:
                 raise ConversionError('no usable frame')
-            collector.add(engine.flush())
+            results += _without_depth(engine.flush())
+            collector.add(engine.refined(results))
             video_info = video.close()
         report.metric_scale = float(engine.statistics['metric_scale'])
         report.bundle_adjustment = engine.statistics['ba']
@@ -150,6 +155,11 @@ def convert_episode(frames: Iterable[SourceFrame], engine: StreamingEngine,
     report.seconds = time.perf_counter() - start
     return EpisodeData(columns, video_path, video_info, image_stats.stats(),
                        bag.path if bag is not None else None, report)
+
+
+def _without_depth(results: list[FrameResult]) -> list[FrameResult]:
+    """Return ``results`` without their depth maps (not written; they would fill memory)."""
+    return [dataclasses.replace(result, depth=None) for result in results]
 
 
 def _push(engine: StreamingEngine, frame: SourceFrame) -> list[FrameResult]:

@@ -1,5 +1,6 @@
 """End-to-end tests of bag_to_dataset (infinihand_ros/convert/cli.py): outputs read back."""
 
+import dataclasses
 import errno
 import json
 from pathlib import Path
@@ -26,8 +27,11 @@ from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.config import VideoSettings
 from infinihand_ros.convert.estimates_bag import HAND_FRAME_TOPIC
 from infinihand_ros.convert.estimates_bag import MARKERS_TOPIC
+from infinihand_ros.convert.features import CAMERA_POSE
 from infinihand_ros.convert.features import FRAME_FEATURES
 from infinihand_ros.convert.video_writer import EpisodeVideoWriter
+from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.engine.streaming_engine import StreamingEngine
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
@@ -278,3 +282,29 @@ def test_conversion_waits_for_ba_instead_of_dropping(tmp_path: Path) -> None:
     without = load_convert_config(fast_config(tmp_path / 'plain.yaml'))
     assert run_module.engine_config_for(with_ba).bundle_adjustment.worker.when_behind == 'wait'
     assert run_module.engine_config_for(without).bundle_adjustment is None
+
+
+def test_the_dataset_holds_the_final_trajectory(synth_bags: list[Path], tmp_path: Path,
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every output frame's camera pose is the one ``StreamingEngine.refined`` returned."""
+    refined_poses: list[np.ndarray] = []
+    original = StreamingEngine.refined
+
+    def shifted(engine: StreamingEngine, results: list, timeout_s: float | None = None) -> list:
+        out = []
+        for result in original(engine, results, timeout_s):
+            pose = CameraPose(result.camera_pose.rotation,
+                              result.camera_pose.translation + [1.0, 0.0, 0.0])
+            refined_poses.append(pose.matrix())
+            out.append(dataclasses.replace(result, camera_pose=pose))
+        return out
+
+    monkeypatch.setattr(StreamingEngine, 'refined', shifted)
+    output = tmp_path / 'dataset'
+    assert _convert([synth_bags[0]], output, tmp_path) == EXIT_OK
+    info, episodes = _read_dataset(output)
+    data = pq.read_table(output / info['data_path'].format(
+        chunk_index=episodes[0]['data/chunk_index'], file_index=episodes[0]['data/file_index']))
+    written = np.array(data.column(CAMERA_POSE).to_pylist()).reshape(-1, 4, 4)
+    assert len(refined_poses) == len(written) == 6
+    np.testing.assert_allclose(written, np.stack(refined_poses), atol=1e-6)
