@@ -2,9 +2,9 @@
 # Reproduce the bundled model models/tiny_synthetic on a CPU (docs/model_card.md): synthetic
 # training and held-out data, Stage I, Stage II, a second round of both stages, round 3 (the
 # camera phase and a Stage II "motion" round) and round 4 (Stage I heads, backbone frozen), on
-# 2 CPU processes from round 2 on (DistributedDataParallel), then export and evaluation. Every
-# step resumes: run it again after an interruption and it continues where it stopped. Outputs
-# go to runs/ (ignored by git).
+# 2 CPU processes from round 2 on (DistributedDataParallel), then export and evaluation (the
+# engine alone, and the full system with sparse BA). Every step resumes: run it again after an
+# interruption and it continues where it stopped. Outputs go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
 # [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS]]]]]]]
 set -eo pipefail
@@ -73,4 +73,7 @@ train_stage 2 runs/tiny_stage1d --config config/train_tiny_stage1_heads.yaml \
 python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1d/checkpoints/final/model \
   --out models/tiny_synthetic --train-sequences runs/synth_train --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
-  --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
+  --poses live --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
+# The full system: with sparse BA, the final (refined) trajectory scored.
+python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
+  --ba --save-predictions runs/eval_heldout_ba | tee runs/eval_heldout_ba.md

@@ -230,10 +230,10 @@ class BundleAdjustmentWorker:
             if isinstance(item, _Selection):
                 limit = self.config.worker.max_queued_selections
                 if self.config.worker.when_behind == 'wait':
-                    while self._queued_selections() >= limit and not self._stopped():
+                    while len(self._waiting_selections()) >= limit and not self._stopped():
                         self._wake.wait()
                     self._check_accepting()
-                selections = self._queued_selections_list()
+                selections = self._waiting_selections()
                 for stale in selections[:max(0, len(selections) - limit + 1)]:
                     self._queued.remove(stale)
                     self._counts['dropped'] += 1
@@ -280,13 +280,9 @@ class BundleAdjustmentWorker:
         """Return True once the worker failed or its thread ended (caller holds the lock)."""
         return self._fatal or not self._thread.is_alive()
 
-    def _queued_selections_list(self) -> list['_Selection']:
-        """Return the waiting pool selections, oldest first (caller holds the lock)."""
+    def _waiting_selections(self) -> list['_Selection']:
+        """Return the queued pool selections, oldest first (caller holds the lock)."""
         return [queued for queued in self._queued if isinstance(queued, _Selection)]
-
-    def _queued_selections(self) -> int:
-        """Return how many pool selections wait (caller holds the lock)."""
-        return len(self._queued_selections_list())
 
     def close(self, timeout_s: float | None = None) -> None:
         """Finish the queued requests, then stop the thread and the BA process.
