@@ -48,7 +48,7 @@ class PoolConfig:
     """
 
     trigger: int = 32
-    stride: int = 3
+    stride: int = 2
 
     def __post_init__(self) -> None:
         require_at_least('ba.pool', 1, trigger=self.trigger)
@@ -77,7 +77,7 @@ class SolverConfig:
     max_iterations: int = 6
     huber_px: float = 1.5
     gate_px: float = 3.0
-    depth_prior_rel_sigma: float = 0.05
+    depth_prior_rel_sigma: float = 0.2
     rel_pose_sigma_m: float = 0.05
     rel_pose_sigma_rad: float = 0.02
     initial_damping: float = 1e-4
