@@ -6,10 +6,10 @@ earlier demo output) and checks that the fresh ground truth equals the bag's. Th
 the bag's frames through the engine with the embedded trained model and sparse bundle
 adjustment (the full system, as an offline run: the stream waits for BA and the final, refined
 trajectory is scored) and evaluates the estimates against the bag's ground truth (``eval/``):
-it prints the evaluation tables (ours
-beside the baselines) and writes the prediction file and the plots into ``--out``/eval. Then
-the live path (``ros/live_demo.py``): the bag replayed at 10 Hz into the installed estimator
-node, its outputs recorded and evaluated the same way, into ``--out``/live.
+it prints the evaluation tables (ours beside the baselines) and writes the prediction file and
+the plots into ``--out``/eval. Then the live path (``ros/live_demo.py``): the bag replayed at
+10 Hz into the installed estimator node, its outputs recorded and evaluated the same way, into
+``--out``/live.
 """
 
 import argparse
