@@ -9,7 +9,9 @@ checkpoints; ``gather_objects`` and ``mean_values`` collect what it writes from 
 
 from dataclasses import dataclass
 import datetime
+import gc
 import os
+import time
 from typing import Any
 
 from infinihand_ros.core.errors import ConfigError
@@ -19,6 +21,8 @@ import torch.distributed as dist
 
 #: How long ranks wait for each other before a collective fails.
 _TIMEOUT = datetime.timedelta(minutes=30)
+#: Seconds the gloo threads get, without the GIL, to free finished work before teardown.
+GLOO_SETTLE_S = 0.2
 
 
 @dataclass(frozen=True)
@@ -75,8 +79,17 @@ def init_distributed(use_cuda: bool) -> DistributedContext:
 
 
 def shutdown_distributed(context: DistributedContext) -> None:
-    """Leave the process group (no-op when not distributed)."""
+    """Leave the process group (no-op when not distributed).
+
+    Gloo's worker threads free finished collectives' Python-side tensors, which needs the GIL;
+    a process group destroyed by a thread that holds the GIL meanwhile deadlocks (seen at the
+    end of a 2-process CPU run: ``~ProcessGroupGloo`` in the main thread, a gloo thread in
+    ``~AsyncAllgatherWork`` waiting for the GIL). So the caller drops its DDP wrapper first
+    and the gloo threads get a moment without the GIL before the group goes.
+    """
     if context.enabled and dist.is_initialized():
+        gc.collect()
+        time.sleep(GLOO_SETTLE_S)  # releases the GIL
         dist.destroy_process_group()
 
 

@@ -289,6 +289,7 @@ def train(config: TrainConfig, output: str | Path, resume: str | Path | None = N
                                                                run.step + stop_after)
         result = _loop(run, end_step, progress)
         barrier(context)  # every rank is done before the group is torn down
+        del run  # DDP's reducer goes before its process group (see shutdown_distributed)
         return result
     finally:
         torch.set_num_threads(threads)

@@ -15,6 +15,23 @@ import pytest
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def _kill_workers(output: Path) -> list[int]:
+    """Kill the processes whose command line names ``output`` (Linux /proc); return their ids."""
+    killed = []
+    for entry in Path('/proc').iterdir():
+        try:
+            cmdline = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
+        except (OSError, UnicodeDecodeError):
+            continue
+        if entry.name.isdigit() and str(output) in cmdline:
+            try:
+                os.kill(int(entry.name), signal.SIGKILL)
+                killed.append(int(entry.name))
+            except ProcessLookupError:
+                pass
+    return killed
+
+
 @pytest.mark.slow
 def test_two_processes_keep_identical_replicas(write_run_config: Callable[..., Path],
                                                tmp_path: Path) -> None:
@@ -24,14 +41,19 @@ def test_two_processes_keep_identical_replicas(write_run_config: Callable[..., P
     command = [sys.executable, '-m', 'torch.distributed.run', '--standalone',
                '--nproc-per-node', '2', '-m', 'infinihand_ros.train', '--config', str(config),
                '--output', str(output), '--no-progress']
-    launcher = subprocess.Popen(command, cwd=ROOT, env=environment, stdout=subprocess.PIPE,
-                                stderr=subprocess.PIPE, text=True, start_new_session=True)
-    try:
-        stdout, stderr = launcher.communicate(timeout=180)
-    except subprocess.TimeoutExpired:
-        os.killpg(launcher.pid, signal.SIGKILL)  # torchrun and both workers
-        stdout, stderr = launcher.communicate()
-        pytest.fail(f'torchrun did not finish in 180 s:\n{stderr[-4000:]}')
+    # Output goes to files, not pipes: a worker left behind cannot keep the test waiting.
+    out_path, err_path = tmp_path / 'stdout.txt', tmp_path / 'stderr.txt'
+    with out_path.open('w') as out, err_path.open('w') as err:
+        launcher = subprocess.Popen(command, cwd=ROOT, env=environment, stdout=out, stderr=err,
+                                    text=True, start_new_session=True)
+        try:
+            launcher.wait(timeout=180)
+        except subprocess.TimeoutExpired:
+            os.killpg(launcher.pid, signal.SIGKILL)  # torchrun
+            launcher.wait()
+        finally:
+            _kill_workers(output)  # torchrun starts its workers in sessions of their own
+    stdout, stderr = out_path.read_text(), err_path.read_text()
     assert launcher.returncode == 0, stderr[-4000:]
     summary = json.loads((output / SUMMARY_FILE).read_text())
     assert summary['processes'] == 2 and summary['last_step'] == 3
