@@ -189,7 +189,7 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
     initial = np.asarray(T_world_cam, dtype=np.float64)
     pairs = np.c_[np.arange(len(keyframes) - 1), np.arange(1, len(keyframes))]
     return BAProblem(
-        T_world_cam=np.asarray(T_world_cam, dtype=np.float64),
+        T_world_cam=initial,
         intrinsics=np.stack([k.intrinsics.matrix() for k in keyframes]),
         fixed=np.asarray(fixed, dtype=bool), host=host_frame[usable],
         host_xy=host_xy[usable], inv_depth=inv_depth, prior_inv_depth=inv_depth,

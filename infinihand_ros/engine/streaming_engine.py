@@ -28,6 +28,7 @@ import dataclasses
 import threading
 
 from infinihand_ros.core.datatypes import FrameResult
+from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import EngineStateError
 from infinihand_ros.core.errors import InputError
@@ -44,6 +45,7 @@ from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.model_builder import InfiniHandModel
 from infinihand_ros.engine.pose_track import PoseTrack
+from infinihand_ros.engine.pose_track import TrackedPose
 from infinihand_ros.engine.timestamps import check_timestamp
 from infinihand_ros.engine.world_placement import place_in_world
 from infinihand_ros.model.geometry_model import GeometryOutput
@@ -299,14 +301,10 @@ class StreamingEngine:
         if self._ba is not None:
             self._ba.fold_in(track)
             self._ba.offer(record, track.scaled(frame.index), depth)
-        best = track.best(frame.index)
         return FrameResult(
             timestamp_ns=frame.timestamp_ns, frame_index=frame.index,
-            camera_pose=best.camera_pose, intrinsics=record.intrinsics,
-            hands=place_in_world(record.hands, best.camera_pose), is_keyframe=frame.keyframe,
-            depth=depth, metric_scale=best.scale,
-            raw_camera_pose=best.scaled_pose if self._ba is not None else None,
-            pose_version=best.version)
+            intrinsics=record.intrinsics, is_keyframe=frame.keyframe, depth=depth,
+            **self._posed(record.hands, track.best(frame.index)))
 
     def _on_final_trajectory(self, result: FrameResult) -> FrameResult:
         """Return ``result`` with the track's current (not live) pose, scale and hands."""
@@ -316,12 +314,14 @@ class StreamingEngine:
             return result
         depth = (None if result.depth is None
                  else result.depth * (best.scale / result.metric_scale))
-        return dataclasses.replace(
-            result, camera_pose=best.camera_pose, hands=place_in_world(result.hands,
-                                                                       best.camera_pose),
-            depth=depth, metric_scale=best.scale,
-            raw_camera_pose=best.scaled_pose if self._ba is not None else None,
-            pose_version=best.version)
+        return dataclasses.replace(result, depth=depth, **self._posed(result.hands, best))
+
+    def _posed(self, hands: tuple[HandState, ...], best: TrackedPose) -> dict[str, object]:
+        """Return the ``FrameResult`` fields that follow from a tracked pose (hands placed)."""
+        return {'camera_pose': best.camera_pose,
+                'hands': place_in_world(hands, best.camera_pose), 'metric_scale': best.scale,
+                'raw_camera_pose': best.scaled_pose if self._ba is not None else None,
+                'pose_version': best.version}
 
     def _checkpoint_name(self) -> str:
         """Return what the weights came from, for error messages."""

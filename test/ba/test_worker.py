@@ -60,43 +60,42 @@ def test_submit_never_waits_and_results_arrive(keyframes: list) -> None:
     assert worker.poll() == []
 
 
+class _HeldCallback:
+    """A result callback that records frame ids and holds the worker until released."""
+
+    def __init__(self) -> None:
+        self.started, self.release = threading.Event(), threading.Event()
+        self.received: list[list[int]] = []
+
+    def __call__(self, output) -> None:
+        self.received.append(output.frame_ids.tolist())
+        self.started.set()
+        assert self.release.wait(timeout=60.0)
+
+
 def test_a_busy_worker_drops_the_oldest_queued_selections(keyframes: list) -> None:
     """Selections queued behind a busy call beyond the limit are dropped, oldest first."""
-    started, release = threading.Event(), threading.Event()
-    received = []
-
-    def callback(output) -> None:
-        received.append(output.frame_ids.tolist())
-        started.set()
-        assert release.wait(timeout=60.0)
-
+    callback = _HeldCallback()
     with BundleAdjustmentWorker(BAConfig(), callback) as worker:
         worker.submit_selection(keyframes[:3])
-        assert started.wait(timeout=60.0)
+        assert callback.started.wait(timeout=60.0)
         for first in (1, 2):  # queued behind the running call; the first one will be dropped
             worker.submit_selection(keyframes[first:first + 3])
         worker.submit_selection(keyframes[2:])
         assert worker.dropped == 1 and worker.pending() == 3
-        release.set()
-    assert received == [[0, 2, 4], [4, 6, 8], [4, 6, 8]]
+        callback.release.set()
+    assert callback.received == [[0, 2, 4], [4, 6, 8], [4, 6, 8]]
     assert worker.failures == 0
 
 
 def test_a_busy_worker_in_wait_mode_holds_the_submitter_and_drops_nothing(
         keyframes: list) -> None:
     """With ``when_behind: wait`` a full queue makes submit_selection wait for room."""
-    started, release = threading.Event(), threading.Event()
-    received = []
-
-    def callback(output) -> None:
-        received.append(output.frame_ids.tolist())
-        started.set()
-        assert release.wait(timeout=60.0)
-
+    callback = _HeldCallback()
     config = BAConfig(worker=WorkerConfig(when_behind='wait'))
     with BundleAdjustmentWorker(config, callback) as worker:
         worker.submit_selection(keyframes[:3])
-        assert started.wait(timeout=60.0)
+        assert callback.started.wait(timeout=60.0)
         for first in (1, 2):  # fill the queue (limit 2) behind the running call
             worker.submit_selection(keyframes[first:first + 3])
         third = threading.Thread(target=worker.submit_selection, args=(keyframes[2:],))
@@ -104,12 +103,12 @@ def test_a_busy_worker_in_wait_mode_holds_the_submitter_and_drops_nothing(
         third.join(timeout=1.0)
         assert third.is_alive(), 'submit_selection returned although the queue was full'
         assert worker.dropped == 0 and worker.pending() == 3
-        release.set()
+        callback.release.set()
         third.join(timeout=60.0)
         assert not third.is_alive()
         assert worker.wait_idle(timeout_s=120.0)
         assert worker.pending() == 0
-    assert received == [[0, 2, 4], [2, 4, 6], [4, 6, 8], [4, 6, 8]]
+    assert callback.received == [[0, 2, 4], [2, 4, 6], [4, 6, 8], [4, 6, 8]]
     assert worker.dropped == 0 and worker.failures == 0
 
 
