@@ -1,9 +1,10 @@
 #!/bin/bash
 # Reproduce the bundled model models/tiny_synthetic on a CPU (docs/model_card.md): synthetic
 # training and held-out data, Stage I, Stage II, a second round of both stages, round 3 (the
-# camera phase and a Stage II "motion" round) and round 4 (Stage I heads, backbone frozen), on
-# 2 CPU processes from round 2 on (DistributedDataParallel), then export and evaluation (the
-# engine alone, and the full system with sparse BA). Every step resumes: run it again after an
+# camera phase and a Stage II "motion" round), round 4 (Stage I heads, backbone frozen) and
+# rounds 5 and 6 (the same on 320 and 560 sequences), on 2 CPU processes from round 2 on
+# (DistributedDataParallel), then export and evaluation (the engine alone, and the full system
+# with sparse BA). Every step resumes: run it again after an
 # interruption and it continues where it stopped. Outputs go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
 # [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS [WIDE_HEADS_STEPS
@@ -81,7 +82,8 @@ train_stage 2 runs/tiny_stage2c --config config/train_tiny_stage2_motion.yaml \
 train_stage 2 runs/tiny_stage1d --config config/train_tiny_stage1_heads.yaml \
   --steps "$HEADS_STEPS" --init runs/tiny_stage2c/checkpoints/final/model
 # Round 5: round 4's setting on the 320 sequences (the mask head and the hand branch had learnt
-# the 80 sequences more than the task).
+# the 80 sequences more than the task). The bundled round 5 started from round 4's float16
+# export (models/tiny_synthetic at the time), not from this float32 checkpoint.
 train_stage 2 runs/tiny_stage1e --config config/train_tiny_stage1_heads_wide.yaml \
   --steps "$WIDE_HEADS_STEPS" --init runs/tiny_stage1d/checkpoints/final/model
 # Round 6: the same setting on 560 sequences (round 5 raised recall from 0.67 to 0.73).
