@@ -4,8 +4,8 @@
 # camera phase and a Stage II "motion" round), round 4 (Stage I heads, backbone frozen) and
 # rounds 5 and 6 (the same on 320 and 560 sequences), on 2 CPU processes from round 2 on
 # (DistributedDataParallel), then export and evaluation (the engine alone, and the full system
-# with sparse BA). Every step resumes: run it again after an
-# interruption and it continues where it stopped. Outputs go to runs/ (ignored by git).
+# with sparse BA). Every step resumes: run it again after an interruption and it continues where
+# it stopped. Outputs go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
 # [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS [WIDE_HEADS_STEPS
 # [WIDER_HEADS_STEPS]]]]]]]]]
@@ -31,18 +31,16 @@ generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory,
   fi
 }
 
-# 80 training sequences (seeds 10000-10079, 10 s at 10 FPS, at the model's 224 x 168).
-for seed in $(seq 10000 10079); do
-  generate "runs/synth_train/seed_$seed" "$seed" 100 10 224 168
-done
-# 240 more for round 5 (seeds 10080-10319).
-for seed in $(seq 10080 10319); do
-  generate "runs/synth_train_extra/seed_$seed" "$seed" 100 10 224 168
-done
-# 240 more for round 6 (seeds 10320-10559).
-for seed in $(seq 10320 10559); do
-  generate "runs/synth_train_more/seed_$seed" "$seed" 100 10 224 168
-done
+generate_train() {  # generate_train DIR FIRST_SEED LAST_SEED: 10 s at 10 FPS, at the model's 224 x 168
+  for seed in $(seq "$2" "$3"); do
+    generate "$1/seed_$seed" "$seed" 100 10 224 168
+  done
+}
+
+# Training sequences: 80 for rounds 1-4,
+generate_train runs/synth_train 10000 10079
+generate_train runs/synth_train_extra 10080 10319  # 240 more for round 5
+generate_train runs/synth_train_more 10320 10559   # 240 more for round 6
 # 12 held-out sequences: other seeds, other frame rates (15 and 30 FPS) and size (320 x 240).
 for i in $(seq 0 11); do
   seed=$((20000 + i)); fps=$([ "$i" -lt 6 ] && echo 15 || echo 30)
