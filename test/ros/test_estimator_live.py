@@ -34,6 +34,7 @@ from live_processes import SHARE
 from live_processes import start
 import numpy as np
 import pytest
+import torch
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 pytest.importorskip('rclpy', reason='rclpy is not importable (source scripts/env.sh)')
@@ -95,16 +96,26 @@ def _recorded(bag: Path) -> dict[str, list]:
 
 
 def _offline(stamps: list[int]) -> list:
-    """Run the node's pipeline offline on the bag frames with these stamps."""
+    """Run the node's pipeline offline on the bag frames with these stamps.
+
+    On one torch thread, as the node (``ros_env`` sets ``OMP_NUM_THREADS=1``): with another
+    thread count the sums round differently, and a mask pixel at the 0.5 threshold can move a
+    hand box by a pixel and the hand by centimetres.
+    """
     config = estimator_config_from_parameters(load_estimator_defaults())
     wanted = set(stamps)
     outputs = []
-    with StreamingEngine(engine_config_for(config.engine)) as engine:
-        pipeline = EstimatorPipeline(config, engine)
-        for frame in read_camera_frames(SAMPLE_BAG):
-            if frame.timestamp_ns in wanted:
-                outputs += pipeline.process(frame.rgb, frame.timestamp_ns, frame.intrinsics)
-        outputs += pipeline.flush()
+    threads = torch.get_num_threads()
+    torch.set_num_threads(1)
+    try:
+        with StreamingEngine(engine_config_for(config.engine)) as engine:
+            pipeline = EstimatorPipeline(config, engine)
+            for frame in read_camera_frames(SAMPLE_BAG):
+                if frame.timestamp_ns in wanted:
+                    outputs += pipeline.process(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+            outputs += pipeline.flush()
+    finally:
+        torch.set_num_threads(threads)
     return outputs
 
 
