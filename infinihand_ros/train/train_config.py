@@ -31,6 +31,7 @@ from infinihand_ros.train.losses import load_loss_config
 from infinihand_ros.train.losses import LossConfig
 from infinihand_ros.train.losses import LOSSES_SECTION
 from infinihand_ros.train.losses.loss_config import LOSSES_FILE
+from infinihand_ros.train.photometric import PhotometricJitter
 import yaml
 
 #: Top-level section of a training file holding the ``TrainConfig`` fields.
@@ -219,10 +220,12 @@ class TrainConfig:
         batch_size: clips per optimizer step and process (the global batch is this times the
             number of processes).
         steps: optimizer steps of the whole run (the schedule's length).
-        seed: seed of the data order and the box sampling.
+        seed: seed of the data order and the per-step draws (boxes, colour jitter).
         gt_box_ratio: probability that a visible hand runs on its ground-truth box rather than
             the predicted one (paper Stage II: 0.5; Stage I: 1.0).
         box_jitter: random scale and shift of the ground-truth boxes (ours; off by default).
+        photometric: random brightness, contrast and saturation per clip (ours; off by
+            default).
         peak_region_boxes: predicted boxes cover only the region around each mask's peak, as
             the engine's ``detection.peak_region`` (ours; off by default).
         use_gt_intrinsics: run the hand branch with the annotated intrinsics (else the
@@ -252,6 +255,7 @@ class TrainConfig:
     seed: int = 0
     gt_box_ratio: float = 1.0
     box_jitter: BoxJitter = field(default_factory=BoxJitter)
+    photometric: PhotometricJitter = field(default_factory=PhotometricJitter)
     peak_region_boxes: bool = False
     use_gt_intrinsics: bool = True
     mask_logit_eps: float = 1.0e-6

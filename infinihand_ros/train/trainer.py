@@ -40,6 +40,7 @@ from infinihand_ros.train.distributed import shutdown_distributed
 from infinihand_ros.train.loss_log import LossLog
 from infinihand_ros.train.optim import build_optimizer
 from infinihand_ros.train.optim import build_scheduler
+from infinihand_ros.train.photometric import jitter_photometric
 from infinihand_ros.train.train_config import train_config_to_yaml
 from infinihand_ros.train.train_config import TrainConfig
 from infinihand_ros.train.train_state import capture_rng
@@ -187,6 +188,9 @@ class _Run:
         if self.config.box_jitter.enabled:
             batch = {**batch, keys.BOXES: jitter_boxes(batch[keys.BOXES], self.config.box_jitter,
                                                        self.box_generator)}
+        if self.config.photometric.enabled:
+            batch = {**batch, keys.IMAGES: jitter_photometric(
+                batch[keys.IMAGES], self.config.photometric, self.box_generator)}
         batch = _batch_to(batch, self.device)
         outputs = self.runner(batch, use_gt.to(self.device))
         self.optimizer.zero_grad(set_to_none=True)
