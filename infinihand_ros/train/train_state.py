@@ -40,7 +40,7 @@ def checkpoint_name(step: int, final: bool) -> str:
     return FINAL_NAME if final else f'step_{step:07d}'
 
 
-def capture_rng(box_generator: torch.Generator) -> dict[str, Any]:
+def capture_rng(step_generator: torch.Generator) -> dict[str, Any]:
     """Return this process's random states as plain data and tensors."""
     kind, keys, position, has_gauss, gauss = np.random.get_state()
     return {
@@ -49,11 +49,11 @@ def capture_rng(box_generator: torch.Generator) -> dict[str, Any]:
         'numpy': (kind, torch.from_numpy(keys.astype(np.int64)), int(position), int(has_gauss),
                   float(gauss)),
         'python': random.getstate(),
-        'box': box_generator.get_state(),
+        'box': step_generator.get_state(),  # key kept: checkpoints written before the rename
     }
 
 
-def restore_rng(state: dict[str, Any], box_generator: torch.Generator) -> None:
+def restore_rng(state: dict[str, Any], step_generator: torch.Generator) -> None:
     """Restore the random states ``capture_rng`` returned."""
     torch.set_rng_state(state['torch'])
     if state['cuda'] and torch.cuda.is_available():
@@ -62,7 +62,7 @@ def restore_rng(state: dict[str, Any], box_generator: torch.Generator) -> None:
     np.random.set_state((kind, keys.numpy().astype(np.uint32), position, has_gauss, gauss))
     version, internal, gauss_next = state['python']
     random.setstate((version, tuple(internal), gauss_next))
-    box_generator.set_state(state['box'])
+    step_generator.set_state(state['box'])
 
 
 @dataclass(frozen=True)

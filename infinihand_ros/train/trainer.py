@@ -144,7 +144,7 @@ class _Run:
         self.config, self.output, self.context = config, output, context
         self.device = resolve_device(config, context)
         _seed_everything(config.seed + context.rank)
-        self.box_generator = torch.Generator().manual_seed(
+        self.step_generator = torch.Generator().manual_seed(
             config.seed + _BOX_SEED_STRIDE * (context.rank + 1))
         self.model = build_model(config, resume.directory / MODEL_DIR if resume else None)
         self.model.to(self.device)
@@ -173,7 +173,7 @@ class _Run:
         self.scheduler.load_state_dict(state['scheduler'])
         states = state['rng']
         if len(states) == self.context.world_size:
-            restore_rng(states[self.context.rank], self.box_generator)
+            restore_rng(states[self.context.rank], self.step_generator)
         else:
             logger.warning('resuming %d process(es) from a checkpoint of %d: random states '
                            'are reseeded, so the run will not repeat the original exactly',
@@ -184,13 +184,13 @@ class _Run:
                                                                   torch.Tensor]:
         """Run one optimizer step; return the outputs and the gradient norm before clipping."""
         shape = batch[keys.BOX_VALID].shape
-        use_gt = torch.rand(shape, generator=self.box_generator) < self.config.gt_box_ratio
+        use_gt = torch.rand(shape, generator=self.step_generator) < self.config.gt_box_ratio
         if self.config.box_jitter.enabled:
             batch = {**batch, keys.BOXES: jitter_boxes(batch[keys.BOXES], self.config.box_jitter,
-                                                       self.box_generator)}
+                                                       self.step_generator)}
         if self.config.photometric.enabled:
             batch = {**batch, keys.IMAGES: jitter_photometric(
-                batch[keys.IMAGES], self.config.photometric, self.box_generator)}
+                batch[keys.IMAGES], self.config.photometric, self.step_generator)}
         batch = _batch_to(batch, self.device)
         outputs = self.runner(batch, use_gt.to(self.device))
         self.optimizer.zero_grad(set_to_none=True)
@@ -212,7 +212,7 @@ class _Run:
 
     def checkpoint(self) -> Path:
         """Write the checkpoint of the current step (rank 0 writes; every rank gives RNG)."""
-        states = gather_objects(self.context, capture_rng(self.box_generator))
+        states = gather_objects(self.context, capture_rng(self.step_generator))
         final = self.step == self.config.steps
         directory = self.output / CHECKPOINTS_DIR / checkpoint_name(self.step, final)
         if self.context.is_main:
