@@ -220,12 +220,14 @@ class TrainConfig:
         batch_size: clips per optimizer step and process (the global batch is this times the
             number of processes).
         steps: optimizer steps of the whole run (the schedule's length).
-        seed: seed of the data order and the per-step draws (boxes, colour jitter).
+        seed: seed of the data order and the per-step draws (boxes, colour jitter, flips).
         gt_box_ratio: probability that a visible hand runs on its ground-truth box rather than
             the predicted one (paper Stage II: 0.5; Stage I: 1.0).
         box_jitter: random scale and shift of the ground-truth boxes (ours; off by default).
         photometric: random brightness, contrast and saturation per clip (ours; off by
             default).
+        horizontal_flip: probability that a clip is mirrored left-right, sides swapped (ours;
+            ``horizontal_flip.py``; 0: off).
         peak_region_boxes: predicted boxes cover only the region around each mask's peak, as
             the engine's ``detection.peak_region`` (ours; off by default).
         use_gt_intrinsics: run the hand branch with the annotated intrinsics (else the
@@ -256,6 +258,7 @@ class TrainConfig:
     gt_box_ratio: float = 1.0
     box_jitter: BoxJitter = field(default_factory=BoxJitter)
     photometric: PhotometricJitter = field(default_factory=PhotometricJitter)
+    horizontal_flip: float = 0.0
     peak_region_boxes: bool = False
     use_gt_intrinsics: bool = True
     mask_logit_eps: float = 1.0e-6
@@ -279,6 +282,9 @@ class TrainConfig:
         if not 0.0 <= self.gt_box_ratio <= 1.0:
             raise ConfigError(f'{owner}.gt_box_ratio: must be in [0, 1], got '
                               f'{self.gt_box_ratio!r}')
+        if not 0.0 <= self.horizontal_flip <= 1.0:
+            raise ConfigError(f'{owner}.horizontal_flip: must be a probability in [0, 1], got '
+                              f'{self.horizontal_flip!r}')
         if not self.mask_logit_eps < 0.5:
             raise ConfigError(f'{owner}.mask_logit_eps: must be below 0.5, got '
                               f'{self.mask_logit_eps!r}')

@@ -37,6 +37,8 @@ from infinihand_ros.train.distributed import init_distributed
 from infinihand_ros.train.distributed import mean_values
 from infinihand_ros.train.distributed import replica_checksum
 from infinihand_ros.train.distributed import shutdown_distributed
+from infinihand_ros.train.horizontal_flip import draw_flips
+from infinihand_ros.train.horizontal_flip import flip_clips
 from infinihand_ros.train.loss_log import LossLog
 from infinihand_ros.train.optim import build_optimizer
 from infinihand_ros.train.optim import build_scheduler
@@ -191,6 +193,9 @@ class _Run:
         if self.config.photometric.enabled:
             batch = {**batch, keys.IMAGES: jitter_photometric(
                 batch[keys.IMAGES], self.config.photometric, self.step_generator)}
+        if self.config.horizontal_flip > 0.0:
+            batch = flip_clips(batch, draw_flips(shape[0], self.config.horizontal_flip,
+                                                 self.step_generator))
         batch = _batch_to(batch, self.device)
         outputs = self.runner(batch, use_gt.to(self.device))
         self.optimizer.zero_grad(set_to_none=True)
