@@ -27,6 +27,7 @@ from typing import Final
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.mano.mirror import mirror_axis_angle
 from infinihand_ros.mano.mirror import mirror_points
+from infinihand_ros.mano.mirror import POINT_MIRROR_SIGNS
 from infinihand_ros.train import sequence_reader as keys
 import torch
 
@@ -54,13 +55,13 @@ def _mirror_intrinsics(intrinsics: torch.Tensor, width: int) -> torch.Tensor:
     """Return ``F K M`` for (..., 3, 3) K: the camera of the column-flipped image."""
     column_flip = torch.tensor([[-1.0, 0.0, width - 1.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
                                dtype=intrinsics.dtype)
-    mirror = torch.diag(torch.tensor([-1.0, 1.0, 1.0], dtype=intrinsics.dtype))
+    mirror = torch.diag(torch.tensor(POINT_MIRROR_SIGNS, dtype=intrinsics.dtype))
     return column_flip @ intrinsics @ mirror
 
 
 def _mirror_pose(T_world_cam: torch.Tensor) -> torch.Tensor:
     """Return ``M T M`` for (..., 4, 4) camera-to-world transforms (camera and world mirrored)."""
-    mirror = torch.diag(torch.tensor([-1.0, 1.0, 1.0, 1.0], dtype=T_world_cam.dtype))
+    mirror = torch.diag(torch.tensor((*POINT_MIRROR_SIGNS, 1.0), dtype=T_world_cam.dtype))
     return mirror @ T_world_cam @ mirror
 
 
