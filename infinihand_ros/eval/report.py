@@ -5,6 +5,8 @@ import math
 from typing import Final
 
 from infinihand_ros.eval.baselines import BASELINES
+from infinihand_ros.eval.detection_breakdown import DetectionBreakdown
+from infinihand_ros.eval.detection_breakdown import MISS_CAUSES
 from infinihand_ros.eval.runner import Evaluation
 from infinihand_ros.eval.runner import Metrics
 
@@ -40,7 +42,26 @@ def markdown_tables(evaluation: Evaluation) -> str:
                 continue
             lines.append(f'| {name} | ' + ' | '.join(cells) + ' |')
         parts.append('\n'.join(lines))
+    if evaluation.detection is not None:
+        parts.append(breakdown_table(evaluation.detection))
     return '\n\n'.join(parts) + '\n'
+
+
+def breakdown_table(breakdown: DetectionBreakdown) -> str:
+    """Return the detection breakdown: recall per side and size, missed targets per cause."""
+    sides = zip(('left', 'right'), breakdown.by_side)
+    groups = [(f'{name} hands', count) for name, count in sides]
+    groups += [(f'size {label}', count)
+               for label, count in zip(breakdown.size_bins(), breakdown.by_size)]
+    lines = ['**Detection breakdown** (size: sqrt(target box area) / image width W)', '',
+             '| targets | count | Recall |', '|---|---|---|']
+    lines += [f'| {name} | {count.targets} | {_cell(count.recall)} |' for name, count in groups]
+    missed = sum(breakdown.misses.values())
+    lines += ['', '| missed because | count | share |', '|---|---|---|']
+    lines += [f'| {cause.replace("_", " ")} | {breakdown.misses[cause]} | '
+              f'{_cell(breakdown.misses[cause] / missed if missed else float("nan"))} |'
+              for cause in MISS_CAUSES]
+    return '\n'.join(lines)
 
 
 def sequence_table(evaluation: Evaluation) -> str:
@@ -62,7 +83,7 @@ def _finite(metrics: Metrics) -> dict[str, float | None]:
 
 
 def json_line(evaluation: Evaluation, settings: dict[str, object]) -> str:
-    """Return ``{"ours": ..., "baselines": ..., "sequences": [...], "settings": ...}``."""
+    """Return ``{"ours", "baselines", "sequences", "detection_breakdown", "settings"}`` as JSON."""
     return json.dumps({
         'ours': _finite(evaluation.ours),
         'baselines': {name: _finite(values) for name, values in evaluation.baselines.items()},
@@ -71,4 +92,6 @@ def json_line(evaluation: Evaluation, settings: dict[str, object]) -> str:
                        'baselines': {name: _finite(values)
                                      for name, values in item.baselines.items()}}
                       for item in evaluation.sequences],
+        'detection_breakdown': (None if evaluation.detection is None
+                                else evaluation.detection.as_dict()),
         'settings': settings}, sort_keys=False)

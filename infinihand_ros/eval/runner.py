@@ -23,10 +23,13 @@ from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.eval import baselines
+from infinihand_ros.eval.detection_breakdown import detection_breakdown
+from infinihand_ros.eval.detection_breakdown import DetectionBreakdown
 from infinihand_ros.eval.matching import EvalFrame
 from infinihand_ros.eval.matching import HandPrediction
 from infinihand_ros.eval.matching import HandTarget
-from infinihand_ros.eval.metrics import evaluate_frames
+from infinihand_ros.eval.metrics import camera_space_metrics
+from infinihand_ros.eval.metrics import detection_metrics
 from infinihand_ros.eval.metrics import match_frames
 from infinihand_ros.eval.metrics import world_space
 from infinihand_ros.eval.sequences import EvalSequence
@@ -234,29 +237,33 @@ class Evaluation:
             the engine's mean throughput (``frames/s``).
         baselines: mean metrics per baseline.
         sequences: the per-sequence evaluations.
+        detection: where detection failed (by side, size, miss cause), None without targets.
 
     """
 
     ours: Metrics
     baselines: dict[str, Metrics]
     sequences: list[SequenceEvaluation]
+    detection: DetectionBreakdown | None = None
 
 
 def aggregate(evaluations: list[SequenceEvaluation]) -> Evaluation:
     """Pool and average per-sequence evaluations (see the module docstring)."""
     frames = [frame for evaluation in evaluations for frame in evaluation.frames]
     ours: Metrics = {}
+    breakdown = None
     if any(frame.targets for frame in frames):
-        detection, camera_space = evaluate_frames(frames)
-        ours.update(detection.as_dict())
-        ours.update(camera_space.as_dict())
+        matches = match_frames(frames)
+        ours.update(detection_metrics(frames, matches).as_dict())
+        ours.update(camera_space_metrics(frames, matches=matches).as_dict())
+        breakdown = detection_breakdown(frames, matches)
     ours.update(_mean([e.ours for e in evaluations]))
     ours['frames/s'] = float(np.mean([e.predictions.frames_per_s for e in evaluations]))
     names = dict.fromkeys(name for e in evaluations for name in e.baselines)
     return Evaluation(ours=ours,
                       baselines={name: _mean([e.baselines[name] for e in evaluations])
                                  for name in names},
-                      sequences=evaluations)
+                      sequences=evaluations, detection=breakdown)
 
 
 def evaluate(sequences: Sequence[EvalSequence], make_engine: Callable[[], StreamingEngine],

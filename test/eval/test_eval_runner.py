@@ -182,7 +182,11 @@ def test_cli_json_line_files_and_usage_errors(synth_output: Path, tmp_path: Path
     line = capsys.readouterr().out.strip().splitlines()
     assert len(line) == 1
     report = json.loads(line[0])
-    assert set(report) == {'ours', 'baselines', 'sequences', 'settings'}
+    assert set(report) == {'ours', 'baselines', 'sequences', 'detection_breakdown', 'settings'}
+    breakdown = report['detection_breakdown']
+    side_targets = [group['targets'] for group in breakdown['by_side'].values()]
+    assert sum(side_targets) > 0
+    assert sum(side_targets) == sum(group['targets'] for group in breakdown['by_size'].values())
     assert set(report['baselines']) == {'static-camera', 'mean-hand', 'mean-pose'}
     assert report['sequences'][0]['name'] == 'seq_31'
     assert report['settings']['mean_pose'].startswith('training set (')  # the bundled model's
