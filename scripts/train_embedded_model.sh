@@ -33,9 +33,9 @@ generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory,
 }
 
 generate_train() {  # generate_train DIR FIRST_SEED LAST_SEED [FRAMES]: 10 FPS, the model's 224 x 168
-  for seed in $(seq "$2" "$3"); do
-    generate "$1/seed_$seed" "$seed" "${4:-100}" 10 224 168
-  done
+  # samples only, one process for the whole range; seeds already written are skipped
+  python -m infinihand_ros.synth.batch --out "$1" --seeds "$2" "$3" --frames "${4:-100}" --fps 10 \
+    --width 224 --height 168 > /dev/null
 }
 
 # Training sequences: 80 for rounds 1-4,
