@@ -216,12 +216,15 @@ def recorded_predictions(run: RecordedRun, sequence: EvalSequence) -> Prediction
 
 def evaluate_recorded(run: RecordedRun, sequence: EvalSequence, mean_pose_joints: np.ndarray
                       ) -> Evaluation:
-    """Score the run on ``sequence`` (the runner's rules); ``MISSING_METRICS`` become NaN."""
+    """Score the run on ``sequence`` (the runner's rules).
+
+    ``MISSING_METRICS`` become NaN, and there is no detection breakdown (detection is among them).
+    """
     evaluation = aggregate([score_sequence(sequence, recorded_predictions(run, sequence),
                                            mean_pose_joints)])
     ours = {key: math.nan if key in MISSING_METRICS else value
             for key, value in evaluation.ours.items()}
-    return replace(evaluation, ours=ours)
+    return replace(evaluation, ours=ours, detection=None)
 
 
 def missing_note() -> str:

@@ -148,7 +148,9 @@ def test_evaluation_scores_what_is_published_and_leaves_out_the_rest(
     _write_recording(tmp_path / 'rec', sequence)
     run = read_recorded(tmp_path / 'rec', TOPICS)
     mean_pose = baselines.mean_pose_joints(np.zeros((15, 3)))
-    ours = evaluate_recorded(run, sequence, mean_pose).ours
+    evaluation = evaluate_recorded(run, sequence, mean_pose)
+    assert evaluation.detection is None  # no per-side recall where Recall is not computed
+    ours = evaluation.ours
     for name in ('W-MPJPE', 'PA-MPJPE', 'WA-MPJPE', 'ATE'):
         assert ours[name] == pytest.approx(0.0, abs=1e-6), name
     assert sequence.truth.visible[DROPPED].any() and ours['MP-p'] > 1.0  # missed, penalised
