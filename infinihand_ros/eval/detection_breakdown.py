@@ -19,6 +19,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Final
 
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.eval.matching import box_iou
 from infinihand_ros.eval.matching import enlarge_boxes
@@ -76,7 +78,7 @@ class DetectionBreakdown:
             return {'targets': count.targets,
                     'recall': recall if np.isfinite(recall) else None}
         return {'by_side': {name: group(count)
-                            for name, count in zip(('left', 'right'), self.by_side)},
+                            for name, count in zip(SIDE_NAMES, self.by_side)},
                 'by_size': {label: group(count)
                             for label, count in zip(self.size_bins(), self.by_size)},
                 'misses': dict(self.misses)}
@@ -104,7 +106,15 @@ def _size_bin(box: np.ndarray, width: int) -> int:
 
 def detection_breakdown(frames: Sequence[EvalFrame],
                         matches: Sequence[FrameMatch]) -> DetectionBreakdown:
-    """Split the matched frames' on-screen targets by side, size and miss cause."""
+    """Split the matched frames' on-screen targets by side, size and miss cause.
+
+    Raises:
+        InputError: when ``matches`` does not hold one ``FrameMatch`` per frame.
+
+    """
+    if len(matches) != len(frames):
+        raise InputError(f'matches: expected one FrameMatch per frame ({len(frames)}), '
+                         f'got {len(matches)}')
     side_counts = np.zeros((len(SIDES), 2), int)  # targets, matched
     size_counts = np.zeros((len(SIZE_BIN_EDGES) + 1, 2), int)
     misses = dict.fromkeys(MISS_CAUSES, 0)

@@ -4,6 +4,7 @@ import json
 import math
 from typing import Final
 
+from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.eval.baselines import BASELINES
 from infinihand_ros.eval.detection_breakdown import DetectionBreakdown
 from infinihand_ros.eval.detection_breakdown import MISS_CAUSES
@@ -49,7 +50,7 @@ def markdown_tables(evaluation: Evaluation) -> str:
 
 def breakdown_table(breakdown: DetectionBreakdown) -> str:
     """Return the detection breakdown: recall per side and size, missed targets per cause."""
-    sides = zip(('left', 'right'), breakdown.by_side)
+    sides = zip(SIDE_NAMES, breakdown.by_side)
     groups = [(f'{name} hands', count) for name, count in sides]
     groups += [(f'size {label}', count)
                for label, count in zip(breakdown.size_bins(), breakdown.by_size)]

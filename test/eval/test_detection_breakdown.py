@@ -2,6 +2,7 @@
 
 import json
 
+from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.eval.detection_breakdown import detection_breakdown
@@ -68,6 +69,8 @@ def test_each_missed_target_gets_its_cause_and_the_counts_add_up(frames) -> None
     pooled = detection_metrics(frames, matches)
     assert sum(breakdown.misses.values()) == pooled.false_negatives
     assert sum(c.matched for c in breakdown.by_side) == pooled.true_positives
+    with pytest.raises(InputError, match='one FrameMatch per frame'):
+        detection_breakdown(frames, matches[:-1])
     assert breakdown.by_side[LEFT].recall == pytest.approx(1 / 3)
     assert np.isnan(breakdown.by_size[3].recall)
 
