@@ -84,11 +84,10 @@ class DetectionBreakdown:
                 'misses': dict(self.misses)}
 
 
-def miss_cause(frame: EvalFrame, match: FrameMatch, target: int) -> str:
-    """Return why ``frame.targets[target]`` (a missed target of ``match``) was missed."""
+def miss_cause(frame: EvalFrame, target: int) -> str:
+    """Return why ``frame.targets[target]``, a missed target of the frame, was missed."""
     side = frame.targets[target].side
-    rejected = set(match.rejected_predictions)
-    kept = [p for index, p in enumerate(frame.predictions) if index not in rejected]
+    kept = [p for p in frame.predictions if p.is_positive]
     others = [p.box for p in kept if p.side != side]
     if others:
         iou = box_iou(enlarge_boxes(frame.targets[target].box[None]), np.stack(others))
@@ -100,7 +99,7 @@ def miss_cause(frame: EvalFrame, match: FrameMatch, target: int) -> str:
 
 
 def _size_bin(box: np.ndarray, width: int) -> int:
-    size = np.sqrt(max(box[2] - box[0], 0.0) * max(box[3] - box[1], 0.0)) / width
+    size = np.sqrt((box[2] - box[0]) * (box[3] - box[1])) / width
     return int(np.searchsorted(SIZE_BIN_EDGES, size, side='right'))
 
 
@@ -126,7 +125,7 @@ def detection_breakdown(frames: Sequence[EvalFrame],
                                 (size_counts, _size_bin(hand.box, frame.width))):
                 counts[row] += (1, int(found))
             if not found:
-                misses[miss_cause(frame, match, target)] += 1
+                misses[miss_cause(frame, target)] += 1
     return DetectionBreakdown(
         by_side=tuple(RecallCount(int(n), int(m)) for n, m in side_counts),
         by_size=tuple(RecallCount(int(n), int(m)) for n, m in size_counts), misses=misses)

@@ -21,13 +21,11 @@ from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import load_config
 from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.synth.sample_sink import SAMPLES_DIR
 from infinihand_ros.synth.sample_sink import SampleSink
 from infinihand_ros.synth.sequence import HAND_CHOICES
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
-
-#: Sub-directory of a sequence directory that holds its samples (as the single-sequence CLI).
-SAMPLES_DIR = 'samples'
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -31,6 +31,7 @@ from infinihand_ros.synth.bag_sink import BagOptions
 from infinihand_ros.synth.bag_sink import BagSink
 from infinihand_ros.synth.bag_sink import IMAGE_CODECS
 from infinihand_ros.synth.bag_sink import STORAGE_PLUGINS
+from infinihand_ros.synth.sample_sink import SAMPLES_DIR
 from infinihand_ros.synth.sample_sink import SampleSink
 from infinihand_ros.synth.sequence import HAND_CHOICES
 from infinihand_ros.synth.sequence import SynthConfig
@@ -44,7 +45,6 @@ import yaml
 logger = logging.getLogger(__name__)
 
 BAG_DIR: Final = 'bag'
-SAMPLES_DIR: Final = 'samples'
 FRAMES_PREVIEW: Final = 'preview_frames.png'
 TRAJECTORY_PREVIEW: Final = 'preview_trajectory.png'
 RESOLVED_CONFIG: Final = 'synth_config.yaml'

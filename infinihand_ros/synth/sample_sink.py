@@ -3,6 +3,7 @@
 import contextlib
 import json
 from pathlib import Path
+from typing import Final
 
 import cv2
 from infinihand_ros.core.atomic_io import atomic_directory
@@ -12,6 +13,9 @@ from infinihand_ros.data import sample_format as fmt
 from infinihand_ros.synth.sequence import SynthFrame
 import numpy as np
 from safetensors.numpy import save_file
+
+#: Sub-directory of a generator output directory that holds its training samples.
+SAMPLES_DIR: Final = 'samples'
 
 
 def _encode_depth(depth: np.ndarray) -> np.ndarray:
