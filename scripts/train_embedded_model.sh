@@ -2,13 +2,14 @@
 # Reproduce the bundled model models/tiny_synthetic on a CPU (docs/model_card.md): synthetic
 # training and held-out data, Stage I, Stage II, a second round of both stages, round 3 (the
 # camera phase and a Stage II "motion" round), round 4 (Stage I heads, backbone frozen) and
-# rounds 5, 6 and 8 (the same on 320, 560 and 2,560 sequences), on 2 CPU processes from round 2 on
+# rounds 5, 6 and 8 (the same on 320, 560 and 2,560 sequences) and round 12 (the same with colour
+# jitter and mirroring on 3,500 new scenes), on 2 CPU processes from round 2 on
 # (DistributedDataParallel), then export and evaluation (the engine alone, and the full system
 # with sparse BA). Every step resumes: run it again after an interruption and it continues where
 # it stopped. Outputs go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
 # [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS [WIDE_HEADS_STEPS
-# [WIDER_HEADS_STEPS [SHORT_HEADS_STEPS]]]]]]]]]]
+# [WIDER_HEADS_STEPS [SHORT_HEADS_STEPS [AUG_HEADS_STEPS]]]]]]]]]]]
 set -eo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
@@ -22,6 +23,7 @@ HEADS_STEPS=${7:-500}
 WIDE_HEADS_STEPS=${8:-3600}
 WIDER_HEADS_STEPS=${9:-4500}
 SHORT_HEADS_STEPS=${10:-7500}
+AUG_HEADS_STEPS=${11:-4500}
 
 generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
   if [ ! -f "$1/samples/meta.json" ]; then
@@ -46,6 +48,11 @@ generate_train runs/synth_train_more 10320 10559   # 240 more for round 6
 generate_train runs/synth_train_short 30000 30999 24 &
 first_half=$!
 generate_train runs/synth_train_short 31000 31999 24
+wait "$first_half"
+# and 3,500 more short ones for round 12.
+generate_train runs/synth_train_r12 32000 33749 24 &
+first_half=$!
+generate_train runs/synth_train_r12 33750 35499 24
 wait "$first_half"
 # 12 held-out sequences: other seeds, other frame rates (15 and 30 FPS) and size (320 x 240).
 for i in $(seq 0 11); do
@@ -99,10 +106,16 @@ train_stage 2 runs/tiny_stage1f --config config/train_tiny_stage1_heads_wide.yam
 train_stage 2 runs/tiny_stage1h --config config/train_tiny_stage1_heads_wide.yaml \
   --steps "$SHORT_HEADS_STEPS" --init runs/tiny_stage1f/checkpoints/final/model \
   --data runs/synth_train runs/synth_train_extra runs/synth_train_more runs/synth_train_short
+# Round 12: round 8's setting with colour jitter and mirroring (rounds 9-11 were tried and not
+# kept) on the 80 first sequences and 3,500 new scenes. The bundled round 12 started from round
+# 8's float16 export (models/tiny_synthetic as it was), and its mean pose was computed from the
+# sequences it trained on in that session (runs/synth_train and runs/synth_train_r12).
+train_stage 2 runs/tiny_stage1l --config config/train_tiny_stage1_heads_aug.yaml \
+  --steps "$AUG_HEADS_STEPS" --init runs/tiny_stage1h/checkpoints/final/model \
+  --data runs/synth_train runs/synth_train_r12
 
-python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1h/checkpoints/final/model \
-  --out models/tiny_synthetic --train-sequences runs/synth_train runs/synth_train_extra \
-  runs/synth_train_more runs/synth_train_short --overwrite
+python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1l/checkpoints/final/model \
+  --out models/tiny_synthetic --train-sequences runs/synth_train runs/synth_train_r12 --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --poses live --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
 # The full system: with sparse BA, the final (refined) trajectory scored.
