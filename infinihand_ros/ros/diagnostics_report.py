@@ -3,17 +3,27 @@
 Level OK while images arrive and are published; WARN when no image came for a whole statistics
 window, when images are being dropped or refused in that time, when bundle adjustment has
 failed, or when the bundle-adjustment node is not there (never seen, or lost): poses continue
-unrefined then. STALE before the first image.
+unrefined then. STALE before the first image. The values include how many frames took their
+intrinsics from a paired CameraInfo, the fallback and the model (``intrinsics_from_*``): frames
+counted under ``model`` while a camera publishes CameraInfos mean that pairing is failing.
 """
 
 from dataclasses import dataclass
 import math
+from typing import Final
 
 from infinihand_ros.ros.ba_link import UNAVAILABLE
+from infinihand_ros.ros.camera_info_pairing import FROM_CAMERA_INFO
+from infinihand_ros.ros.camera_info_pairing import FROM_FALLBACK
+from infinihand_ros.ros.camera_info_pairing import FROM_MODEL
 from infinihand_ros.ros.estimator_statistics import OK
 from infinihand_ros.ros.estimator_statistics import STALE
 from infinihand_ros.ros.estimator_statistics import StatisticsSnapshot
 from infinihand_ros.ros.estimator_statistics import WARN
+
+
+#: Intrinsics sources, each reported as ``intrinsics_from_<source>`` (frames since start).
+INTRINSICS_SOURCES: Final = (FROM_CAMERA_INFO, FROM_FALLBACK, FROM_MODEL)
 
 
 @dataclass(frozen=True)
@@ -70,7 +80,9 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         ('metric_scale_state', engine_statistics.get('metric_scale_state', 'unknown')),
         ('pose_version', engine_statistics.get('pose_version', 0)), ('ba_state', state),
         ('ba_results_applied', _ba_count(engine_statistics, 'folded_in')),
-        ('ba_outages', _ba_count(engine_statistics, 'outages')))
+        ('ba_outages', _ba_count(engine_statistics, 'outages')),
+        *((f'intrinsics_from_{source}', snapshot.intrinsics_sources.get(source, 0))
+          for source in INTRINSICS_SOURCES))
     text = tuple((key, _format(value)) for key, value in values)
     if snapshot.received == 0:
         return DiagnosticReport(STALE, 'waiting for images', text)

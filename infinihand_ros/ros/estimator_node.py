@@ -160,6 +160,7 @@ class EstimatorNode(Node):
             rgb = decode_image(msg)
             choice = self._intrinsics_for(stamp_ns, rgb.shape[1], rgb.shape[0])
             outputs = self.pipeline.process(rgb, stamp_ns, choice.intrinsics)
+            self.statistics.intrinsics_used(choice.source)
         except InputError as exc:
             self._bad_frame(f'skipping the image stamped {stamp_ns}: {exc}')
             return

@@ -5,12 +5,14 @@ the time between the first and last event in the window (0 with fewer than two),
 from the second frame on. Latency is measured from the image stamp to the publication of its
 outputs, on the node's clock (ROS time; ``/clock`` when replaying with ``use_sim_time``), and
 from the image's arrival at the node to that publication (the node's own share, any clock).
-Counters (received, dropped, bad, published) count since start. Thread-safe: the image callback
+Counters (received, dropped, bad, published, and the frames processed with intrinsics from each
+source: a paired CameraInfo, the configured fallback, the model's field of view) count since start. Thread-safe: the image callback
 and the inference thread report concurrently.
 """
 
 from collections import deque
 from dataclasses import dataclass
+from dataclasses import field
 import threading
 from typing import Final
 
@@ -40,6 +42,8 @@ class StatisticsSnapshot:
         bad: images (or CameraInfos) refused as malformed.
         published: frames published.
         seconds_since_input: time since the last image, s (inf: none yet).
+        intrinsics_sources: frames processed per intrinsics source (``camera_info_pairing``'s
+            ``FROM_CAMERA_INFO``, ``FROM_FALLBACK``, ``FROM_MODEL``), since start.
 
     """
 
@@ -54,6 +58,7 @@ class StatisticsSnapshot:
     bad: int
     published: int
     seconds_since_input: float
+    intrinsics_sources: dict[str, int] = field(default_factory=dict)
 
 
 def _rate(times: deque[float]) -> float:
@@ -82,6 +87,7 @@ class EstimatorStatistics:
         self._outputs: deque[tuple[float, float, float]] = deque()  # (time, latencies)
         self._counts = {'received': 0, 'dropped': 0, 'bad': 0, 'published': 0}
         self._last_input_s: float | None = None
+        self._intrinsics_sources: dict[str, int] = {}
 
     def frame_received(self, now_s: float) -> None:
         """Count an image that arrived at ``now_s``."""
@@ -100,6 +106,11 @@ class EstimatorStatistics:
         """Count a malformed message."""
         with self._lock:
             self._counts['bad'] += 1
+
+    def intrinsics_used(self, source: str) -> None:
+        """Count a frame processed with intrinsics from ``source``."""
+        with self._lock:
+            self._intrinsics_sources[source] = self._intrinsics_sources.get(source, 0) + 1
 
     def frame_published(self, now_s: float, latency_s: float, processing_s: float) -> None:
         """Count a frame published at ``now_s``.
@@ -126,7 +137,8 @@ class EstimatorStatistics:
                 _rate(self._inputs), _rate(deque(t for t, _, _ in self._outputs)), *latency,
                 *processing, self._counts['received'], self._counts['dropped'],
                 self._counts['bad'], self._counts['published'],
-                float('inf') if last_input is None else now_s - last_input)
+                float('inf') if last_input is None else now_s - last_input,
+                dict(self._intrinsics_sources))
 
     def _trim(self, now_s: float) -> None:
         """Drop events older than the window (caller holds the lock)."""

@@ -21,6 +21,16 @@ def test_running_is_ok_with_the_figures() -> None:
     assert values['input_rate_hz'] == '10.000' and values['latency_p95_ms'] == '80.000'
     assert values['metric_scale'] == '0.250' and values['ba_state'] == 'off'
     assert values['frames_dropped'] == '0' and values['bad_frames'] == '0'
+    assert [values[f'intrinsics_from_{source}'] for source in ('camera_info', 'fallback',
+                                                               'model')] == ['0', '0', '0']
+
+
+def test_intrinsics_sources_appear_with_zeros_for_unused_ones() -> None:
+    """Every source is a value; one never used reads 0."""
+    snapshot = replace(RUNNING, intrinsics_sources={'camera_info': 90, 'model': 5})
+    values = dict(diagnostic_report(snapshot, ENGINE, 5.0, RUNNING).values)
+    assert (values['intrinsics_from_camera_info'], values['intrinsics_from_fallback'],
+            values['intrinsics_from_model']) == ('90', '0', '5')
 
 
 def test_warnings_name_their_cause() -> None:

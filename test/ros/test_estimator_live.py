@@ -95,9 +95,25 @@ def _recorded(bag: Path) -> dict[str, list]:
     return by_topic
 
 
-def _offline(stamps: list[int]) -> list:
+def _model_fov_stamps(recorded_infos: list) -> set[int]:
+    """Return the stamps the node ran on the model's field of view, not the bag's CameraInfo.
+
+    CameraInfo comes best-effort: one can be lost or come after the image's wait (the last
+    one, as the replay exits), and the node then rightly runs that frame on the model's field
+    of view; its ``~/camera_info`` shows which intrinsics each frame used.
+    """
+    bag_intrinsics = {frame.timestamp_ns: frame.intrinsics
+                      for frame in read_camera_frames(SAMPLE_BAG)}
+    return {ns_from_stamp(msg.header.stamp) for msg in recorded_infos
+            if not np.allclose(np.reshape(msg.k, (3, 3)),
+                               bag_intrinsics[ns_from_stamp(msg.header.stamp)].matrix(),
+                               rtol=1e-9, atol=0.0)}
+
+
+def _offline(stamps: list[int], model_fov: set[int]) -> list:
     """Run the node's pipeline offline on the bag frames with these stamps.
 
+    Frames in ``model_fov`` get no intrinsics (the model's field of view), as they did live.
     On one torch thread, as the node (``ros_env`` sets ``OMP_NUM_THREADS=1``): with another
     thread count the sums round differently, and a mask pixel at the 0.5 threshold can move a
     hand box by a pixel and the hand by centimetres.
@@ -112,7 +128,8 @@ def _offline(stamps: list[int]) -> list:
             pipeline = EstimatorPipeline(config, engine)
             for frame in read_camera_frames(SAMPLE_BAG):
                 if frame.timestamp_ns in wanted:
-                    outputs += pipeline.process(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+                    intrinsics = None if frame.timestamp_ns in model_fov else frame.intrinsics
+                    outputs += pipeline.process(frame.rgb, frame.timestamp_ns, intrinsics)
             outputs += pipeline.flush()
     finally:
         torch.set_num_threads(threads)
@@ -163,7 +180,14 @@ def test_sample_bag_through_the_live_node(tmp_path: Path) -> None:
     assert int(values['frames_received']) == len(inputs)
     assert int(values['frames_published']) == len(stamps)
     assert int(values['frames_received']) == len(stamps) + int(values['frames_dropped'])
-    offline = {out.stamp_ns: out for out in _offline(stamps)}
+    infos = recorded[f'{NODE}/camera_info']
+    assert [ns_from_stamp(m.header.stamp) for m in infos] == stamps
+    model_fov = _model_fov_stamps(infos)
+    assert int(values['intrinsics_from_model']) == len(model_fov)
+    assert int(values['intrinsics_from_camera_info']) == len(stamps) - len(model_fov)
+    assert int(values['intrinsics_from_fallback']) == 0
+    assert len(model_fov) <= len(stamps) // 2, 'most frames must pair with their CameraInfo'
+    offline = {out.stamp_ns: out for out in _offline(stamps, model_fov)}
     assert sorted(offline) == stamps
     for msg, stamp in zip(poses, stamps):
         position = msg.pose.position

@@ -42,3 +42,15 @@ def test_nothing_yet() -> None:
     """Before any image: zero rates, NaN latency, infinite time since input."""
     snap = EstimatorStatistics(1.0).snapshot(0.0)
     assert snap.received == 0 and math.isinf(snap.seconds_since_input)
+
+
+def test_intrinsics_sources_are_counted_per_source() -> None:
+    """Each processed frame counts under its intrinsics source; the snapshot is a copy."""
+    stats = EstimatorStatistics(1.0)
+    for source in ('camera_info', 'camera_info', 'model'):
+        stats.intrinsics_used(source)
+    snap = stats.snapshot(0.0)
+    stats.intrinsics_used('fallback')
+    assert snap.intrinsics_sources == {'camera_info': 2, 'model': 1}
+    assert stats.snapshot(0.0).intrinsics_sources == {'camera_info': 2, 'model': 1,
+                                                       'fallback': 1}
