@@ -6,8 +6,8 @@ from the second frame on. Latency is measured from the image stamp to the public
 outputs, on the node's clock (ROS time; ``/clock`` when replaying with ``use_sim_time``), and
 from the image's arrival at the node to that publication (the node's own share, any clock).
 Counters (received, dropped, bad, published, and the frames processed with intrinsics from each
-source: a paired CameraInfo, the configured fallback, the model's field of view) count since start. Thread-safe: the image callback
-and the inference thread report concurrently.
+source: a paired CameraInfo, the configured fallback, the model's field of view) count since
+start. Thread-safe: the image callback and the inference thread report concurrently.
 """
 
 from collections import deque

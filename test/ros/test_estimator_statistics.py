@@ -53,4 +53,4 @@ def test_intrinsics_sources_are_counted_per_source() -> None:
     stats.intrinsics_used('fallback')
     assert snap.intrinsics_sources == {'camera_info': 2, 'model': 1}
     assert stats.snapshot(0.0).intrinsics_sources == {'camera_info': 2, 'model': 1,
-                                                       'fallback': 1}
+                                                      'fallback': 1}
