@@ -122,6 +122,11 @@ def _current_umask() -> int:
     return mask
 
 
+def honour_umask(path: str | Path) -> None:
+    """Give a file created private (safetensors writes 0600) the umask's usual permissions."""
+    os.chmod(path, 0o666 & ~_current_umask())
+
+
 def atomic_write_bytes(path: str | Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file and an atomic rename."""
     path = Path(path)

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import cv2
 from infinihand_ros.core.atomic_io import atomic_directory
+from infinihand_ros.core.atomic_io import honour_umask
 from infinihand_ros.data import sample_format as fmt
 from infinihand_ros.data.prepare import PreparedSequence
 import numpy as np
@@ -42,6 +43,7 @@ def write_sample_directory(prepared: PreparedSequence, path: Path) -> None:
         save_file({key: np.ascontiguousarray(value)
                    for key, value in prepared.annotations.items()},
                   str(work / fmt.ANNOTATIONS_FILE))
+        honour_umask(work / fmt.ANNOTATIONS_FILE)
         width, height = sequence.image_size
         meta = {'format': fmt.FORMAT_NAME, 'version': fmt.FORMAT_VERSION,
                 'frames': sequence.num_frames, 'width': width, 'height': height,

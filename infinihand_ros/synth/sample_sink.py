@@ -7,6 +7,7 @@ from typing import Final
 
 import cv2
 from infinihand_ros.core.atomic_io import atomic_directory
+from infinihand_ros.core.atomic_io import honour_umask
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.data import sample_format as fmt
@@ -107,6 +108,7 @@ class SampleSink:
         arrays = {key: np.ascontiguousarray(np.stack([row[key] for row in self._rows]))
                   for key in self._rows[0]} if self._rows else {}
         save_file(arrays, str(self._work / fmt.ANNOTATIONS_FILE))
+        honour_umask(self._work / fmt.ANNOTATIONS_FILE)
         width, height = self._image_size or (0, 0)
         meta = {'format': fmt.FORMAT_NAME, 'version': fmt.FORMAT_VERSION,
                 'frames': len(self._rows), 'width': width, 'height': height,

@@ -1,6 +1,7 @@
 """Training samples: the written directory loads back through the PyTorch dataset."""
 
 import json
+import os
 from pathlib import Path
 
 from infinihand_ros.core.errors import InputError
@@ -53,6 +54,14 @@ def test_meta_names_the_format(written: tuple[Path, list]) -> None:
     meta = json.loads((written[0] / fmt.META_FILE).read_text())
     assert meta['format'] == fmt.FORMAT_NAME and meta['frames'] == 3
     assert meta['sequence']['seed'] == 4
+
+
+def test_files_are_readable_by_others_as_the_umask_says(written: tuple[Path, list]) -> None:
+    """No file stays private (safetensors creates 0600): datasets are shared on servers."""
+    umask = os.umask(0o022)
+    os.umask(umask)
+    for path in (written[0] / fmt.ANNOTATIONS_FILE, written[0] / fmt.META_FILE):
+        assert path.stat().st_mode & 0o777 == 0o666 & ~umask, path.name
 
 
 def test_bad_directory_is_reported(tmp_path: Path) -> None:

@@ -1,5 +1,7 @@
 """Tests of model/io/checkpoint.py: checked loading and the rules of the checkpoint format."""
 
+import os
+
 from infinihand_ros.core.errors import CheckpointError
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.model.infinihand_model import InfiniHandModel
@@ -53,6 +55,10 @@ def test_parts_round_trip_with_their_configs(model: InfiniHandModel, tmp_path) -
     directory = write_checkpoint(tmp_path / 'part', tensors, model.geometry.config,
                                  source='test: weights.pt')
     assert sorted(path.name for path in directory.iterdir()) == [GEOMETRY_FILE, WEIGHTS_FILE]
+    umask = os.umask(0o022)
+    os.umask(umask)
+    for path in directory.iterdir():  # safetensors creates 0600; shared models must be readable
+        assert path.stat().st_mode & 0o777 == 0o666 & ~umask, path.name
     contents = read_checkpoint(directory)
     assert contents.geometry_config == model.geometry.config and contents.hand_config is None
     assert contents.source == f'{directory} (test: weights.pt)'

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Final
 
 from infinihand_ros.core.atomic_io import atomic_directory
+from infinihand_ros.core.atomic_io import honour_umask
 from infinihand_ros.core.config import load_config
 from infinihand_ros.core.errors import CheckpointError
 from infinihand_ros.model.config import GEOMETRY_SECTION
@@ -285,6 +286,7 @@ def write_checkpoint(directory: str | Path, tensors: Mapping[str, torch.Tensor],
             (staging / HAND_BRANCH_FILE).write_text(hand_branch_config_to_yaml(hand_config),
                                                     encoding='utf-8')
         save_file(portable, staging / WEIGHTS_FILE, metadata=metadata)
+        honour_umask(staging / WEIGHTS_FILE)
         for name, content in (extra_files or {}).items():
             (staging / name).write_bytes(content)
     return directory
