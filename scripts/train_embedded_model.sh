@@ -3,13 +3,13 @@
 # training and held-out data, Stage I, Stage II, a second round of both stages, round 3 (the
 # camera phase and a Stage II "motion" round), round 4 (Stage I heads, backbone frozen) and
 # rounds 5, 6 and 8 (the same on 320, 560 and 2,560 sequences) and round 12 (the same with colour
-# jitter and mirroring on 3,500 new scenes), on 2 CPU processes from round 2 on
+# jitter and mirroring on 3,500 new scenes) and round 13 (the same on 3,000 more), on 2 CPU processes from round 2 on
 # (DistributedDataParallel), then export and evaluation (the engine alone, and the full system
 # with sparse BA). Every step resumes: run it again after an interruption and it continues where
 # it stopped. Outputs go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
 # [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS [WIDE_HEADS_STEPS
-# [WIDER_HEADS_STEPS [SHORT_HEADS_STEPS [AUG_HEADS_STEPS]]]]]]]]]]]
+# [WIDER_HEADS_STEPS [SHORT_HEADS_STEPS [AUG_HEADS_STEPS [ROUND13_STEPS]]]]]]]]]]]]
 set -eo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
@@ -24,6 +24,7 @@ WIDE_HEADS_STEPS=${8:-3600}
 WIDER_HEADS_STEPS=${9:-4500}
 SHORT_HEADS_STEPS=${10:-7500}
 AUG_HEADS_STEPS=${11:-4500}
+ROUND13_STEPS=${12:-4500}
 
 generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
   if [ ! -f "$1/samples/meta.json" ]; then
@@ -53,6 +54,11 @@ wait "$first_half"
 generate_train runs/synth_train_r12 32000 33749 24 &
 first_half=$!
 generate_train runs/synth_train_r12 33750 35499 24
+wait "$first_half"
+# and 3,000 more short ones for round 13.
+generate_train runs/synth_train_r13 35500 36999 24 &
+first_half=$!
+generate_train runs/synth_train_r13 37000 38499 24
 wait "$first_half"
 # 12 held-out sequences: other seeds, other frame rates (15 and 30 FPS) and size (320 x 240).
 for i in $(seq 0 11); do
@@ -114,8 +120,14 @@ train_stage 2 runs/tiny_stage1l --config config/train_tiny_stage1_heads_aug.yaml
   --steps "$AUG_HEADS_STEPS" --init runs/tiny_stage1h/checkpoints/final/model \
   --data runs/synth_train runs/synth_train_r12
 
-python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1l/checkpoints/final/model \
-  --out models/tiny_synthetic --train-sequences runs/synth_train runs/synth_train_r12 --overwrite
+# Round 13: the same setting from round 12 on 3,000 new scenes only. The bundled round 13
+# started from round 12's float16 export (models/tiny_synthetic as it was).
+train_stage 2 runs/tiny_stage1m --config config/train_tiny_stage1_heads_aug.yaml \
+  --steps "$ROUND13_STEPS" --init runs/tiny_stage1l/checkpoints/final/model \
+  --data runs/synth_train_r13
+
+python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1m/checkpoints/final/model \
+  --out models/tiny_synthetic --train-sequences runs/synth_train_r13 --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --poses live --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
 # The full system: with sparse BA, the final (refined) trajectory scored.
