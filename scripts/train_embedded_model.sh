@@ -4,9 +4,9 @@
 # camera phase and a Stage II "motion" round), round 4 (Stage I heads, backbone frozen) and
 # rounds 5, 6 and 8 (the same on 320, 560 and 2,560 sequences), round 12 (the same with colour
 # jitter and mirroring on 3,500 new scenes) and round 13 (the same on 3,000 more), on 2 CPU
-# processes from round 2 on (DistributedDataParallel), then export and evaluation (the engine alone, and the full system
-# with sparse BA). Every step resumes: run it again after an interruption and it continues where
-# it stopped. Outputs go to runs/ (ignored by git).
+# processes from round 2 on (DistributedDataParallel), then export and evaluation (the engine
+# alone, and the full system with sparse BA). Every step resumes: run it again after an
+# interruption and it continues where it stopped. Outputs go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
 # [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS [WIDE_HEADS_STEPS
 # [WIDER_HEADS_STEPS [SHORT_HEADS_STEPS [AUG_HEADS_STEPS [ROUND13_STEPS]]]]]]]]]]]]
