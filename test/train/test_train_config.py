@@ -22,6 +22,20 @@ def test_shipped_configs_load_and_round_trip(name: str, tmp_path: Path) -> None:
     assert load_train_config(path) == config
 
 
+CONFIG_DIR = Path(__file__).parents[2] / 'config'
+#: Every training config (train_losses.yaml holds loss weights, not a training run).
+TRAINING_CONFIGS = sorted(path for path in CONFIG_DIR.glob('train_*.yaml')
+                          if path.name != 'train_losses.yaml')
+
+
+@pytest.mark.parametrize('path', TRAINING_CONFIGS, ids=lambda path: path.stem)
+def test_every_training_config_loads_and_round_trips(path: Path, tmp_path: Path) -> None:
+    config = load_train_config(path)
+    resolved = tmp_path / 'resolved.yaml'
+    resolved.write_text(train_config_to_yaml(config), encoding='utf-8')
+    assert load_train_config(resolved) == config
+
+
 def test_paper_configs_follow_the_paper() -> None:
     """Sec. 4.1: AdamW 0.01, clip 1.0, per-stage rates, 4-frame and 4 + 16 x 2 clips."""
     stage1, stage2 = load_train_config('paper'), load_train_config('paper_stage2')

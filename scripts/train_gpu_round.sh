@@ -1,0 +1,107 @@
+#!/bin/bash
+# Round 14 of the bundled model (docs/model_card.md) on one GPU machine with many CPU cores: new
+# synthetic scenes made on all cores, then two variants trained side by side on the one GPU from
+# the bundled model, each exported (float16) and packed for the trip back:
+# - heads: config/train_tiny_stage1_heads_gpu.yaml (round 13's setting, 16 clips per step);
+# - joint: config/train_tiny_stage2_gpu.yaml (Stage II, whole geometry branch trainable).
+# The machine is lent by the minute, so both phases are timed: every core makes scenes for GEN_S
+# seconds (process p takes seeds FIRST_SEED + 1000 p upwards; runs/gpu_round/seeds.txt lists what
+# was made), CALIB_STEPS steps of each variant side by side give the step times, and the step
+# counts are set so that both runs take about 0.9 TRAIN_S seconds at those times (a run still going
+# at 1.15 TRAIN_S + 30 s is stopped and its newest checkpoint exported). Outputs: runs/gpu_round/
+# and, packed for the trip back, PACK_DIR (each export a tar split into 15 MiB parts, the logs).
+# Usage: scripts/train_gpu_round.sh PACK_DIR FIRST_SEED GEN_S TRAIN_S
+# CALIB_STEPS (default 30) sets the calibration's length, VARIANTS (default "heads joint") which
+# variants run, INIT (default models/tiny_synthetic) the model they start from. Runs without a
+# checkout's .venv: PYTHON (default python3) needs torch, numpy, scipy, opencv, safetensors,
+# pyyaml, tqdm and roma, with this repository on PYTHONPATH.
+set -eo pipefail
+cd "$(dirname "$0")/.."
+PACK_DIR=$1 FIRST_SEED=$2 GEN_S=$3 TRAIN_S=$4
+PYTHON=${PYTHON:-python3}
+CALIB_STEPS=${CALIB_STEPS:-30}
+VARIANTS=${VARIANTS:-heads joint}
+INIT=${INIT:-models/tiny_synthetic}
+WORK=runs/gpu_round
+DATA=$WORK/synth_train_gpu
+mkdir -p "$WORK" "$PACK_DIR"
+stamp() { echo "[$(date +%T)] $*" | tee -a "$WORK/round.log"; }
+config_of() {  # config_of VARIANT
+  if [ "$1" = joint ]; then echo config/train_tiny_stage2_gpu.yaml
+  else echo config/train_tiny_stage1_heads_gpu.yaml; fi
+}
+
+stamp "generate for $GEN_S s on $(nproc) processes from seed $FIRST_SEED"
+for p in $(seq 0 $(($(nproc) - 1))); do
+  first=$((FIRST_SEED + 1000 * p))
+  OMP_NUM_THREADS=1 timeout "$GEN_S" "$PYTHON" -m infinihand_ros.synth.batch --out "$DATA" \
+    --seeds "$first" $((first + 999)) --frames 24 --fps 10 --width 224 --height 168 \
+    > /dev/null 2>&1 &
+done
+generators=$(jobs -p)
+# While the scenes are made: 2 steps of each variant on the first 8 finished ones, so that a run
+# that cannot train on this machine stops here, not after the generation.
+until [ "$(ls "$DATA"/seed_*/samples/meta.json 2>/dev/null | wc -l)" -ge 8 ]; do sleep 1; done
+first_sequences=$(ls -d "$DATA"/seed_*/samples | head -8 | xargs -n1 dirname)
+for name in $VARIANTS; do
+  config=$(config_of "$name")
+  # shellcheck disable=SC2086
+  if ! "$PYTHON" -m infinihand_ros.train --config "$config" --output "$WORK/sanity_$name" \
+      --steps 2 --init "$INIT" --data $first_sequences --no-progress \
+      > "$WORK/sanity_$name.log" 2>&1; then
+    stamp "sanity run of $name failed: $WORK/sanity_$name.log"
+    kill $generators 2>/dev/null || true
+    cp "$WORK/sanity_$name.log" "$WORK/round.log" "$PACK_DIR/"
+    exit 1
+  fi
+  stamp "sanity run of $name: $(tail -1 "$WORK/sanity_$name.log")"
+done
+wait $generators || true
+find "$DATA" -mindepth 2 -maxdepth 2 -name '.*' -exec rm -rf {} +  # interrupted sequences
+find "$DATA" -mindepth 1 -maxdepth 1 -type d -empty -delete
+ls "$DATA" | sort -t_ -k2 -n > "$WORK/seeds.txt"
+stamp "generated $(wc -l < "$WORK/seeds.txt") sequences"
+
+train() {  # train NAME CONFIG STEPS [SECONDS]: from INIT
+  timeout "${4:-3600}" "$PYTHON" -m infinihand_ros.train --config "$2" --output "$WORK/$1" \
+    --steps "$3" --init "$INIT" --data "$DATA" --no-progress \
+    > "$WORK/$1.log" 2>&1 || echo "$1: training stopped with status $?" >> "$WORK/$1.log"
+}
+steps_for() {  # steps_for NAME: steps of about 0.9 TRAIN_S s at the calibration's logged steps
+  "$PYTHON" -c "import json, sys, yaml; rates = [json.loads(line)['clips_per_s'] for line in \
+open(sys.argv[1]) if json.loads(line)['step'] > 1]; clips = yaml.safe_load(open(sys.argv[2])) \
+['train']['batch_size']; print(max(1, int(0.9 * float(sys.argv[3]) * sum(rates) / len(rates) \
+/ clips)))" "$WORK/calib_$1/loss_log.jsonl" "$(config_of "$1")" "$TRAIN_S"
+}
+stamp "calibrate: $CALIB_STEPS steps of each of $VARIANTS side by side"
+for name in $VARIANTS; do
+  train "calib_$name" "$(config_of "$name")" "$CALIB_STEPS" &
+done
+wait
+limit=$((TRAIN_S * 115 / 100 + 30))
+for name in $VARIANTS; do
+  steps=$(steps_for "$name" || echo 300)  # 300: the calibration failed
+  stamp "train $name ($steps steps)"
+  train "$name" "$(config_of "$name")" "$steps" "$limit" &
+done
+wait
+stamp "trained"
+cp "$WORK/round.log" "$WORK/seeds.txt" "$PACK_DIR/"
+
+for name in $VARIANTS; do
+  checkpoint=$WORK/$name/checkpoints/final/model
+  if [ ! -f "$checkpoint/model.safetensors" ]; then
+    newest=$(ls -d "$WORK/$name"/checkpoints/step_* 2>/dev/null | tail -1)
+    checkpoint=${newest:+$newest/model}
+  fi
+  if [ -n "$checkpoint" ]; then
+    echo "$name: exporting $checkpoint" >> "$WORK/$name.log"
+    "$PYTHON" -m infinihand_ros.model.io.export --checkpoint "$checkpoint" \
+      --out "$WORK/export_$name" --train-sequences "$DATA" --overwrite >> "$WORK/$name.log" 2>&1 \
+      && tar -C "$WORK" -cf - "export_$name" | split -b 15M - "$PACK_DIR/export_$name.tar.part-"
+  fi
+  cat "$WORK/calib_$name.log" "$WORK/$name.log" "$WORK/$name/loss_log.jsonl" \
+    > "$PACK_DIR/$name.log" 2>/dev/null || true
+done
+stamp "packed into $PACK_DIR"
+cp "$WORK/round.log" "$PACK_DIR/"
