@@ -1,7 +1,7 @@
 #!/bin/bash
-# Round 14 of the bundled model (docs/model_card.md) on one GPU machine with many CPU cores: new
-# synthetic scenes made on all cores, then two variants trained side by side on the one GPU from
-# the bundled model, each exported (float16) and packed for the trip back:
+# A round of the bundled model (docs/model_card.md) on one GPU machine with many CPU cores: new
+# synthetic scenes made on all cores, then the variants trained side by side on the one GPU from
+# INIT, each exported (float16) and packed for the trip back:
 # - heads: config/train_tiny_stage1_heads_gpu.yaml (round 13's setting, 16 clips per step);
 # - joint: config/train_tiny_stage2_gpu.yaml (Stage II, whole geometry branch trainable).
 # The machine is lent by the minute, so both phases are timed: every core makes scenes for GEN_S
@@ -14,7 +14,9 @@
 # CALIB_STEPS (default 30) sets the calibration's length, VARIANTS (default "heads joint") which
 # variants run, INIT (default models/tiny_synthetic) the model they start from. Runs without a
 # checkout's .venv: PYTHON (default python3) needs torch, numpy, scipy, opencv, safetensors,
-# pyyaml, tqdm and roma, with this repository on PYTHONPATH.
+# pyyaml, tqdm and roma, with this repository on PYTHONPATH. Round 14 ran
+#   scripts/train_gpu_round.sh $OUT 40000 100 270   (14a is its joint export), then
+#   CALIB_STEPS=15 INIT=<14a's export> scripts/train_gpu_round.sh $OUT 60000 45 110   (14b: heads)
 set -eo pipefail
 cd "$(dirname "$0")/.."
 PACK_DIR=$1 FIRST_SEED=$2 GEN_S=$3 TRAIN_S=$4
