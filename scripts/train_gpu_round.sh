@@ -32,6 +32,13 @@ config_of() {  # config_of VARIANT
   if [ "$1" = joint ]; then echo config/train_tiny_stage2_gpu.yaml
   else echo config/train_tiny_stage1_heads_gpu.yaml; fi
 }
+train() {  # train NAME VARIANT STEPS SECONDS SEQUENCE...: from INIT, log in $WORK/NAME.log
+  local name=$1 variant=$2 steps=$3 seconds=$4
+  shift 4
+  timeout "$seconds" "$PYTHON" -m infinihand_ros.train --config "$(config_of "$variant")" \
+    --output "$WORK/$name" --steps "$steps" --init "$INIT" --data "$@" --no-progress \
+    > "$WORK/$name.log" 2>&1
+}
 
 stamp "generate for $GEN_S s on $(nproc) processes from seed $FIRST_SEED"
 for p in $(seq 0 $(($(nproc) - 1))); do
@@ -46,11 +53,8 @@ generators=$(jobs -p)
 until [ "$(ls "$DATA"/seed_*/samples/meta.json 2>/dev/null | wc -l)" -ge 8 ]; do sleep 1; done
 first_sequences=$(ls -d "$DATA"/seed_*/samples | head -8 | xargs -n1 dirname)
 for name in $VARIANTS; do
-  config=$(config_of "$name")
   # shellcheck disable=SC2086
-  if ! "$PYTHON" -m infinihand_ros.train --config "$config" --output "$WORK/sanity_$name" \
-      --steps 2 --init "$INIT" --data $first_sequences --no-progress \
-      > "$WORK/sanity_$name.log" 2>&1; then
+  if ! train "sanity_$name" "$name" 2 3600 $first_sequences; then
     stamp "sanity run of $name failed: $WORK/sanity_$name.log"
     kill $generators 2>/dev/null || true
     cp "$WORK/sanity_$name.log" "$WORK/round.log" "$PACK_DIR/"
@@ -64,27 +68,27 @@ find "$DATA" -mindepth 1 -maxdepth 1 -type d -empty -delete
 ls "$DATA" | sort -t_ -k2 -n > "$WORK/seeds.txt"
 stamp "generated $(wc -l < "$WORK/seeds.txt") sequences"
 
-train() {  # train NAME CONFIG STEPS [SECONDS]: from INIT
-  timeout "${4:-3600}" "$PYTHON" -m infinihand_ros.train --config "$2" --output "$WORK/$1" \
-    --steps "$3" --init "$INIT" --data "$DATA" --no-progress \
-    > "$WORK/$1.log" 2>&1 || echo "$1: training stopped with status $?" >> "$WORK/$1.log"
+stopped() {  # stopped NAME STATUS: note in NAME's log that its run ended early
+  echo "$1: training stopped with status $2" >> "$WORK/$1.log"
 }
-steps_for() {  # steps_for NAME: steps of about 0.9 TRAIN_S s at the calibration's logged steps
-  "$PYTHON" -c "import json, sys, yaml; rates = [json.loads(line)['clips_per_s'] for line in \
-open(sys.argv[1]) if json.loads(line)['step'] > 1]; clips = yaml.safe_load(open(sys.argv[2])) \
-['train']['batch_size']; print(max(1, int(0.9 * float(sys.argv[3]) * sum(rates) / len(rates) \
-/ clips)))" "$WORK/calib_$1/loss_log.jsonl" "$(config_of "$1")" "$TRAIN_S"
+steps_for() {  # steps_for VARIANT: steps of about 0.9 TRAIN_S s at the calibration's logged steps
+  "$PYTHON" -c "import json, sys, yaml; \
+records = [json.loads(line) for line in open(sys.argv[1])]; \
+rates = [record['clips_per_s'] for record in records if record['step'] > 1]; \
+clips = yaml.safe_load(open(sys.argv[2]))['train']['batch_size']; \
+print(max(1, int(0.9 * float(sys.argv[3]) * sum(rates) / len(rates) / clips)))" \
+    "$WORK/calib_$1/loss_log.jsonl" "$(config_of "$1")" "$TRAIN_S"
 }
 stamp "calibrate: $CALIB_STEPS steps of each of $VARIANTS side by side"
 for name in $VARIANTS; do
-  train "calib_$name" "$(config_of "$name")" "$CALIB_STEPS" &
+  { train "calib_$name" "$name" "$CALIB_STEPS" 3600 "$DATA" || stopped "calib_$name" $?; } &
 done
 wait
 limit=$((TRAIN_S * 115 / 100 + 30))
 for name in $VARIANTS; do
   steps=$(steps_for "$name" || echo 300)  # 300: the calibration failed
   stamp "train $name ($steps steps)"
-  train "$name" "$(config_of "$name")" "$steps" "$limit" &
+  { train "$name" "$name" "$steps" "$limit" "$DATA" || stopped "$name" $?; } &
 done
 wait
 stamp "trained"
