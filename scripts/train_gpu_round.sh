@@ -12,9 +12,13 @@
 # and, packed for the trip back, PACK_DIR (each export a tar split into 15 MiB parts, the logs).
 # Usage: scripts/train_gpu_round.sh PACK_DIR FIRST_SEED GEN_S TRAIN_S
 # CALIB_STEPS (default 30) sets the calibration's length, VARIANTS (default "heads joint") which
-# variants run, INIT (default models/tiny_synthetic) the model they start from. Runs without a
-# checkout's .venv: PYTHON (default python3) needs torch, numpy, scipy, opencv, safetensors,
-# pyyaml, tqdm and roma, with this repository on PYTHONPATH. Round 14 ran
+# variants run, INIT (default models/tiny_synthetic) the model they start from; CONFIG_<variant>
+# and INIT_<variant> set one variant's config and start (a variant not named joint runs heads'
+# config unless its CONFIG_ says otherwise). runs/gpu_round/ may hold an earlier call's scenes
+# and exports (a second call on a machine still warm): the new scenes are added, every variant
+# trains on all of them, and INIT_<variant> may name an earlier export. Runs without a checkout's
+# .venv: PYTHON (default python3) needs torch, numpy, scipy, opencv, safetensors, pyyaml, tqdm
+# and roma, with this repository on PYTHONPATH. Round 14 ran
 #   scripts/train_gpu_round.sh $OUT 40000 100 270   (14a is its joint export), then
 #   CALIB_STEPS=15 INIT=<14a's export> scripts/train_gpu_round.sh $OUT 60000 45 110   (14b: heads)
 set -eo pipefail
@@ -28,16 +32,22 @@ WORK=runs/gpu_round
 DATA=$WORK/synth_train_gpu
 mkdir -p "$WORK" "$PACK_DIR"
 stamp() { echo "[$(date +%T)] $*" | tee -a "$WORK/round.log"; }
-config_of() {  # config_of VARIANT
-  if [ "$1" = joint ]; then echo config/train_tiny_stage2_gpu.yaml
+config_of() {  # config_of VARIANT: its CONFIG_<VARIANT>, else joint's or heads' config
+  local own="CONFIG_$1"
+  if [ -n "${!own}" ]; then echo "${!own}"
+  elif [ "$1" = joint ]; then echo config/train_tiny_stage2_gpu.yaml
   else echo config/train_tiny_stage1_heads_gpu.yaml; fi
 }
-train() {  # train NAME VARIANT STEPS SECONDS SEQUENCE...: from INIT, log in $WORK/NAME.log
+init_of() {  # init_of VARIANT: its INIT_<VARIANT>, else INIT
+  local own="INIT_$1"
+  echo "${!own:-$INIT}"
+}
+train() {  # train NAME VARIANT STEPS SECONDS SEQUENCE...: from VARIANT's start, log $WORK/NAME.log
   local name=$1 variant=$2 steps=$3 seconds=$4
   shift 4
   timeout "$seconds" "$PYTHON" -m infinihand_ros.train --config "$(config_of "$variant")" \
-    --output "$WORK/$name" --steps "$steps" --init "$INIT" --data "$@" --no-progress \
-    > "$WORK/$name.log" 2>&1
+    --output "$WORK/$name" --steps "$steps" --init "$(init_of "$variant")" --data "$@" \
+    --no-progress > "$WORK/$name.log" 2>&1
 }
 
 stamp "generate for $GEN_S s on $(nproc) processes from seed $FIRST_SEED"
@@ -51,7 +61,7 @@ generators=$(jobs -p)
 # While the scenes are made: 2 steps of each variant on the first 8 finished ones, so that a run
 # that cannot train on this machine stops here, not after the generation.
 until [ "$(ls "$DATA"/seed_*/samples/meta.json 2>/dev/null | wc -l)" -ge 8 ]; do sleep 1; done
-first_sequences=$(ls -d "$DATA"/seed_*/samples | head -8 | xargs -n1 dirname)
+first_sequences=$(ls -d "$DATA"/seed_*/samples | sed -n 1,8p | xargs -n1 dirname)
 for name in $VARIANTS; do
   # shellcheck disable=SC2086
   if ! train "sanity_$name" "$name" 2 3600 $first_sequences; then
