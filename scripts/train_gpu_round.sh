@@ -21,6 +21,13 @@
 # and roma, with this repository on PYTHONPATH. Round 14 ran
 #   scripts/train_gpu_round.sh $OUT 40000 100 270   (14a is its joint export), then
 #   CALIB_STEPS=15 INIT=<14a's export> scripts/train_gpu_round.sh $OUT 60000 45 110   (14b: heads)
+# and round 15 (the second call on the same machine, still warm)
+#   VARIANTS="joint jointmask" CONFIG_jointmask=config/train_tiny_stage2_gpu_mask.yaml \
+#     scripts/train_gpu_round.sh PACK 80000 90 370   (15a is its joint export), then
+#   VARIANTS="heads headsmask" INIT_heads=runs/gpu_round/export_joint \
+#     INIT_headsmask=runs/gpu_round/export_jointmask CALIB_STEPS=10 \
+#     scripts/train_gpu_round.sh PACK 100000 15 125   (15b: heads)
+# with PACK a folder tarred and split into $OUT afterwards (at most 8 files come back).
 set -eo pipefail
 cd "$(dirname "$0")/.."
 PACK_DIR=$1 FIRST_SEED=$2 GEN_S=$3 TRAIN_S=$4
