@@ -4,15 +4,16 @@
 # camera phase and a Stage II "motion" round), round 4 (Stage I heads, backbone frozen) and
 # rounds 5, 6 and 8 (the same on 320, 560 and 2,560 sequences), round 12 (the same with colour
 # jitter and mirroring on 3,500 new scenes) and round 13 (the same on 3,000 more), on 2 CPU
-# processes from round 2 on (DistributedDataParallel), round 14 (Stage II with the whole geometry
-# branch, then the heads again; run on a GPU machine by scripts/train_gpu_round.sh, here the same
-# steps on one CPU process), then export and evaluation (the engine alone, and the full system
-# with sparse BA). Every step resumes: run it again after an
-# interruption and it continues where it stopped. Outputs go to runs/ (ignored by git).
+# processes from round 2 on (DistributedDataParallel), rounds 14 and 15 (Stage II with the whole
+# geometry branch, then the heads again; run on a GPU machine by scripts/train_gpu_round.sh, here
+# the same steps on one CPU process), round 16 (the heads in round 13's setting again, 2 CPU
+# processes), then export and evaluation (the engine alone, and the full system with sparse BA).
+# Every step resumes: run it again after an interruption and it continues where it stopped.
+# Outputs go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
 # [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS [WIDE_HEADS_STEPS
 # [WIDER_HEADS_STEPS [SHORT_HEADS_STEPS [AUG_HEADS_STEPS [ROUND13_STEPS [ROUND14_JOINT_STEPS
-# [ROUND14_HEADS_STEPS]]]]]]]]]]]]]]
+# [ROUND14_HEADS_STEPS [ROUND15_JOINT_STEPS [ROUND15_HEADS_STEPS [ROUND16_STEPS]]]]]]]]]]]]]]]]]
 set -eo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
@@ -30,6 +31,9 @@ AUG_HEADS_STEPS=${11:-4500}
 ROUND13_STEPS=${12:-4500}
 ROUND14_JOINT_STEPS=${13:-379}
 ROUND14_HEADS_STEPS=${14:-382}
+ROUND15_JOINT_STEPS=${15:-447}
+ROUND15_HEADS_STEPS=${16:-413}
+ROUND16_STEPS=${17:-2300}
 
 generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
   if [ ! -f "$1/samples/meta.json" ]; then
@@ -77,6 +81,22 @@ for range in 60000-60025 61000-61026 62000-62023 63000-63022 64000-64026 65000-6
     73000-73022 74000-74023 75000-75025; do
   generate_train runs/synth_train_r14b "${range%-*}" "${range#*-}" 24
 done
+# and round 15's, the same way (process p from seed 80000 + 1000 p, then 100000 + 1000 p).
+for range in 80000-80074 81000-81068 82000-82078 83000-83069 84000-84078 85000-85077 \
+    86000-86076 87000-87076 88000-88073 89000-89072 90000-90079 91000-91077 92000-92074 \
+    93000-93075 94000-94080 95000-95071; do
+  generate_train runs/synth_train_r15a "${range%-*}" "${range#*-}" 24
+done
+for range in 100000-100003 101000-101004 102000-102003 103000-103001 104000-104002 \
+    105000-105005 106000-106005 107000-107004 108000-108004 109000-109006 110000-110004 \
+    111000-111002 112000-112005 113000-113003 114000-114004 115000-115005; do
+  generate_train runs/synth_train_r15b "${range%-*}" "${range#*-}" 24
+done
+# and round 16's, made on this CPU's 2 cores in 8 minutes.
+generate_train runs/synth_train_r16 120000 120794 24 &
+first_half=$!
+generate_train runs/synth_train_r16 121000 121775 24
+wait "$first_half"
 # 12 held-out sequences: other seeds, other frame rates (15 and 30 FPS) and size (320 x 240).
 for i in $(seq 0 11); do
   seed=$((20000 + i)); fps=$([ "$i" -lt 6 ] && echo 15 || echo 30)
@@ -143,7 +163,7 @@ train_stage 2 runs/tiny_stage1m --config config/train_tiny_stage1_heads_aug.yaml
   --steps "$ROUND13_STEPS" --init runs/tiny_stage1l/checkpoints/final/model \
   --data runs/synth_train_r13
 
-# Round 14 (bundled): Stage II with the whole geometry branch trainable, colour jitter and
+# Round 14: Stage II with the whole geometry branch trainable, colour jitter and
 # mirroring, 8 clips per step, on 1,659 new scenes (the backbone learns the hands: recall 0.816 ->
 # 0.826 after 379 steps), then round 13's heads setting (backbone frozen) with 16 clips per step on
 # 409 more (PA-MPJPE back down). One process: the configs' clips per step are the GPU run's. The
@@ -155,8 +175,24 @@ train_stage 1 runs/tiny_stage1n --config config/train_tiny_stage1_heads_gpu.yaml
   --steps "$ROUND14_HEADS_STEPS" --init runs/tiny_stage2g/checkpoints/final/model \
   --data runs/synth_train_r14b
 
-python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1n/checkpoints/final/model \
-  --out models/tiny_synthetic --train-sequences runs/synth_train_r14b --overwrite
+# Round 15: round 14's two steps again from round 14, on 1,213 new scenes, then the heads
+# on those and 76 more (the GPU machine's scene folder held both). The bundled round 15 started
+# from round 14's float16 export, and 15b from 15a's.
+train_stage 1 runs/tiny_stage2h --config config/train_tiny_stage2_gpu.yaml \
+  --steps "$ROUND15_JOINT_STEPS" --init runs/tiny_stage1n/checkpoints/final/model \
+  --data runs/synth_train_r15a
+train_stage 1 runs/tiny_stage1o --config config/train_tiny_stage1_heads_gpu.yaml \
+  --steps "$ROUND15_HEADS_STEPS" --init runs/tiny_stage2h/checkpoints/final/model \
+  --data runs/synth_train_r15a runs/synth_train_r15b
+
+# Round 16 (bundled): round 13's heads setting from round 15 on 1,571 new scenes. The bundled
+# round 16 started from round 15's float16 export.
+train_stage 2 runs/tiny_stage1p --config config/train_tiny_stage1_heads_aug.yaml \
+  --steps "$ROUND16_STEPS" --init runs/tiny_stage1o/checkpoints/final/model \
+  --data runs/synth_train_r16
+
+python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1p/checkpoints/final/model \
+  --out models/tiny_synthetic --train-sequences runs/synth_train_r16 --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --poses live --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
 # The full system: with sparse BA, the final (refined) trajectory scored.
