@@ -50,53 +50,47 @@ generate_train() {  # generate_train DIR FIRST_SEED LAST_SEED [FRAMES]: 10 FPS, 
     --width 224 --height 168 > /dev/null
 }
 
+generate_short() {  # generate_short DIR FIRST-LAST...: 24-frame scenes, a range per core (2)
+  local dir=$1 range pid pending=()
+  shift
+  for range in "$@"; do
+    generate_train "$dir" "${range%-*}" "${range#*-}" 24 &
+    pending+=("$!")
+    if [ "${#pending[@]}" -eq 2 ]; then
+      for pid in "${pending[@]}"; do wait "$pid"; done
+      pending=()
+    fi
+  done
+  for pid in "${pending[@]}"; do wait "$pid"; done
+}
+
 # Training sequences: 80 for rounds 1-4,
 generate_train runs/synth_train 10000 10079
 generate_train runs/synth_train_extra 10080 10319  # 240 more for round 5
 generate_train runs/synth_train_more 10320 10559   # 240 more for round 6
 # and 2,000 short ones (24 frames: more scenes for the same clips) for round 8, on both cores.
-generate_train runs/synth_train_short 30000 30999 24 &
-first_half=$!
-generate_train runs/synth_train_short 31000 31999 24
-wait "$first_half"
+generate_short runs/synth_train_short 30000-30999 31000-31999
 # and 3,500 more short ones for round 12.
-generate_train runs/synth_train_r12 32000 33749 24 &
-first_half=$!
-generate_train runs/synth_train_r12 33750 35499 24
-wait "$first_half"
+generate_short runs/synth_train_r12 32000-33749 33750-35499
 # and 3,000 more short ones for round 13.
-generate_train runs/synth_train_r13 35500 36999 24 &
-first_half=$!
-generate_train runs/synth_train_r13 37000 38499 24
-wait "$first_half"
+generate_short runs/synth_train_r13 35500-36999 37000-38499
 # and round 14's scenes, made on the GPU machine's 16 cores in a fixed time (process p from seed
 # 40000 + 1000 p, then 60000 + 1000 p): the ranges each process finished.
-for range in 40000-40100 41000-41108 42000-42103 43000-43102 44000-44099 45000-45107 \
-    46000-46099 47000-47093 48000-48105 49000-49100 50000-50105 51000-51099 52000-52106 \
-    53000-53110 54000-54102 55000-55105; do
-  generate_train runs/synth_train_r14a "${range%-*}" "${range#*-}" 24
-done
-for range in 60000-60025 61000-61026 62000-62023 63000-63022 64000-64026 65000-65026 \
-    66000-66026 67000-67027 68000-68025 69000-69023 70000-70025 71000-71020 72000-72029 \
-    73000-73022 74000-74023 75000-75025; do
-  generate_train runs/synth_train_r14b "${range%-*}" "${range#*-}" 24
-done
+generate_short runs/synth_train_r14a 40000-40100 41000-41108 42000-42103 43000-43102 \
+  44000-44099 45000-45107 46000-46099 47000-47093 48000-48105 49000-49100 50000-50105 \
+  51000-51099 52000-52106 53000-53110 54000-54102 55000-55105
+generate_short runs/synth_train_r14b 60000-60025 61000-61026 62000-62023 63000-63022 \
+  64000-64026 65000-65026 66000-66026 67000-67027 68000-68025 69000-69023 70000-70025 \
+  71000-71020 72000-72029 73000-73022 74000-74023 75000-75025
 # and round 15's, the same way (process p from seed 80000 + 1000 p, then 100000 + 1000 p).
-for range in 80000-80074 81000-81068 82000-82078 83000-83069 84000-84078 85000-85077 \
-    86000-86076 87000-87076 88000-88073 89000-89072 90000-90079 91000-91077 92000-92074 \
-    93000-93075 94000-94080 95000-95071; do
-  generate_train runs/synth_train_r15a "${range%-*}" "${range#*-}" 24
-done
-for range in 100000-100003 101000-101004 102000-102003 103000-103001 104000-104002 \
-    105000-105005 106000-106005 107000-107004 108000-108004 109000-109006 110000-110004 \
-    111000-111002 112000-112005 113000-113003 114000-114004 115000-115005; do
-  generate_train runs/synth_train_r15b "${range%-*}" "${range#*-}" 24
-done
+generate_short runs/synth_train_r15a 80000-80074 81000-81068 82000-82078 83000-83069 \
+  84000-84078 85000-85077 86000-86076 87000-87076 88000-88073 89000-89072 90000-90079 \
+  91000-91077 92000-92074 93000-93075 94000-94080 95000-95071
+generate_short runs/synth_train_r15b 100000-100003 101000-101004 102000-102003 103000-103001 \
+  104000-104002 105000-105005 106000-106005 107000-107004 108000-108004 109000-109006 \
+  110000-110004 111000-111002 112000-112005 113000-113003 114000-114004 115000-115005
 # and round 16's, made on this CPU's 2 cores in 8 minutes.
-generate_train runs/synth_train_r16 120000 120794 24 &
-first_half=$!
-generate_train runs/synth_train_r16 121000 121775 24
-wait "$first_half"
+generate_short runs/synth_train_r16 120000-120794 121000-121775
 # 12 held-out sequences: other seeds, other frame rates (15 and 30 FPS) and size (320 x 240).
 for i in $(seq 0 11); do
   seed=$((20000 + i)); fps=$([ "$i" -lt 6 ] && echo 15 || echo 30)
