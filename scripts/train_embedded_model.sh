@@ -96,6 +96,12 @@ for i in $(seq 0 11); do
   seed=$((20000 + i)); fps=$([ "$i" -lt 6 ] && echo 15 || echo 30)
   generate "runs/heldout/seed_${seed}_fps${fps}" "$seed" 150 "$fps" 320 240
 done
+# A second set made the same way (seeds 22000-22011): inference rules are tried on it, not on
+# the held-out set, and it shows the held-out figure's sampling spread (docs/model_card.md).
+for i in $(seq 0 11); do
+  seed=$((22000 + i)); fps=$([ "$i" -lt 6 ] && echo 15 || echo 30)
+  generate "runs/val/seed_${seed}_fps${fps}" "$seed" 150 "$fps" 320 240
+done
 
 train_stage() {  # train_stage PROCESSES OUTPUT ARGS...: a new run, or the resumed one
   local launch=(python -m infinihand_ros.train)
@@ -189,6 +195,8 @@ python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1p/checkpoi
   --out models/tiny_synthetic --train-sequences runs/synth_train_r16 --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --poses live --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
+python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/val/* \
+  --poses live | tee runs/eval_val.md
 # The full system: with sparse BA, the final (refined) trajectory scored.
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --ba --save-predictions runs/eval_heldout_ba | tee runs/eval_heldout_ba.md
