@@ -91,17 +91,18 @@ generate_short runs/synth_train_r15b 100000-100003 101000-101004 102000-102003 1
   110000-110004 111000-111002 112000-112005 113000-113003 114000-114004 115000-115005
 # and round 16's, made on this CPU's 2 cores in 8 minutes.
 generate_short runs/synth_train_r16 120000-120794 121000-121775
+generate_eval_set() {  # generate_eval_set DIR FIRST_SEED: 12 sequences, 6 at 15 FPS, 6 at 30
+  local i seed fps
+  for i in $(seq 0 11); do
+    seed=$(($2 + i)); fps=$([ "$i" -lt 6 ] && echo 15 || echo 30)
+    generate "$1/seed_${seed}_fps${fps}" "$seed" 150 "$fps" 320 240
+  done
+}
 # 12 held-out sequences: other seeds, other frame rates (15 and 30 FPS) and size (320 x 240).
-for i in $(seq 0 11); do
-  seed=$((20000 + i)); fps=$([ "$i" -lt 6 ] && echo 15 || echo 30)
-  generate "runs/heldout/seed_${seed}_fps${fps}" "$seed" 150 "$fps" 320 240
-done
+generate_eval_set runs/heldout 20000
 # A second set made the same way (seeds 22000-22011): inference rules are tried on it, not on
 # the held-out set, and it shows the held-out figure's sampling spread (docs/model_card.md).
-for i in $(seq 0 11); do
-  seed=$((22000 + i)); fps=$([ "$i" -lt 6 ] && echo 15 || echo 30)
-  generate "runs/val/seed_${seed}_fps${fps}" "$seed" 150 "$fps" 320 240
-done
+generate_eval_set runs/val 22000
 
 train_stage() {  # train_stage PROCESSES OUTPUT ARGS...: a new run, or the resumed one
   local launch=(python -m infinihand_ros.train)
