@@ -7,13 +7,15 @@
 # processes from round 2 on (DistributedDataParallel), rounds 14 and 15 (Stage II with the whole
 # geometry branch, then the heads again; run on a GPU machine by scripts/train_gpu_round.sh, here
 # the same steps on one CPU process), round 16 (the heads in round 13's setting again, 2 CPU
-# processes), then export and evaluation (the engine alone, and the full system with sparse BA).
+# processes), round 18 (the same setting at a 336 x 252 input), then export and evaluation (the
+# engine alone, and the full system with sparse BA).
 # Every step resumes: run it again after an interruption and it continues where it stopped.
 # Outputs go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
 # [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS [WIDE_HEADS_STEPS
 # [WIDER_HEADS_STEPS [SHORT_HEADS_STEPS [AUG_HEADS_STEPS [ROUND13_STEPS [ROUND14_JOINT_STEPS
-# [ROUND14_HEADS_STEPS [ROUND15_JOINT_STEPS [ROUND15_HEADS_STEPS [ROUND16_STEPS]]]]]]]]]]]]]]]]]
+# [ROUND14_HEADS_STEPS [ROUND15_JOINT_STEPS [ROUND15_HEADS_STEPS [ROUND16_STEPS
+# [ROUND18_STEPS]]]]]]]]]]]]]]]]]]
 set -eo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
@@ -34,6 +36,7 @@ ROUND14_HEADS_STEPS=${14:-382}
 ROUND15_JOINT_STEPS=${15:-447}
 ROUND15_HEADS_STEPS=${16:-413}
 ROUND16_STEPS=${17:-2300}
+ROUND18_STEPS=${18:-2000}
 
 generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
   if [ ! -f "$1/samples/meta.json" ]; then
@@ -44,11 +47,13 @@ generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory,
   fi
 }
 
-generate_train() {  # generate_train DIR FIRST_SEED LAST_SEED [FRAMES]: 10 FPS, the model's 224 x 168
-  # samples only, one process for the whole range; seeds already written are skipped
+generate_train() {  # generate_train DIR FIRST_SEED LAST_SEED [FRAMES]: 10 FPS, TRAIN_SIZE
+  # (the model's input, 224 x 168 up to round 16), samples only, one process for the whole
+  # range; seeds already written are skipped
   python -m infinihand_ros.synth.batch --out "$1" --seeds "$2" "$3" --frames "${4:-100}" --fps 10 \
-    --width 224 --height 168 > /dev/null
+    --width "${TRAIN_SIZE% *}" --height "${TRAIN_SIZE#* }" > /dev/null
 }
+TRAIN_SIZE='224 168'
 
 generate_short() {  # generate_short DIR FIRST-LAST...: 24-frame scenes, a range per core (2)
   local dir=$1 range pid pending=()
@@ -91,6 +96,10 @@ generate_short runs/synth_train_r15b 100000-100003 101000-101004 102000-102003 1
   110000-110004 111000-111002 112000-112005 113000-113003 114000-114004 115000-115005
 # and round 16's, made on this CPU's 2 cores in 8 minutes.
 generate_short runs/synth_train_r16 120000-120794 121000-121775
+# and round 17's (tried and not kept; round 18 trains on them), made the same way,
+generate_short runs/synth_train_r17 130000-130602 131000-131606
+# and round 18's at its 336 x 252 input, made the same way.
+TRAIN_SIZE='336 252' generate_short runs/synth_train_r18 140000-140775 141000-141771
 generate_eval_set() {  # generate_eval_set DIR FIRST_SEED: 12 sequences, 6 at 15 FPS, 6 at 30
   local i seed fps
   for i in $(seq 0 11); do
@@ -192,8 +201,23 @@ train_stage 2 runs/tiny_stage1p --config config/train_tiny_stage1_heads_aug.yaml
   --steps "$ROUND16_STEPS" --init runs/tiny_stage1o/checkpoints/final/model \
   --data runs/synth_train_r16
 
-python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1p/checkpoints/final/model \
-  --out models/tiny_synthetic --train-sequences runs/synth_train_r16 --overwrite
+# Round 18 (bundled): round 16 at a 336 x 252 input (round 16's input size edited in a copy of
+# its checkpoint; the training reader fits the 224 x 168 scenes to it), round 13's heads setting
+# on round 18's 1,548 new scenes at that size and round 16's and 17's. The bundled round 18
+# started from round 16's float16 export (models/tiny_synthetic as it was).
+if [ ! -f runs/tiny_stage1p_336/geometry.yaml ]; then
+  mkdir -p runs/tiny_stage1p_336
+  cp runs/tiny_stage1p/checkpoints/final/model/* runs/tiny_stage1p_336/
+  sed -i -e 's/image_height: 168/image_height: 252/' -e 's/image_width: 224/image_width: 336/' \
+    runs/tiny_stage1p_336/geometry.yaml
+fi
+train_stage 2 runs/tiny_stage1q --config config/train_tiny_stage1_heads_aug.yaml \
+  --steps "$ROUND18_STEPS" --init runs/tiny_stage1p_336 \
+  --data runs/synth_train_r18 runs/synth_train_r17 runs/synth_train_r16
+
+python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1q/checkpoints/final/model \
+  --out models/tiny_synthetic --train-sequences runs/synth_train_r18 runs/synth_train_r17 \
+  runs/synth_train_r16 --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --poses live --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/val/* \

@@ -7,6 +7,9 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.config import check_device
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.model.infinihand_model import load_branch_configs
+from infinihand_ros.model.io.bundled import resolve_checkpoint
+from infinihand_ros.model.io.checkpoint import read_checkpoint
 import pytest
 import torch
 
@@ -20,8 +23,16 @@ def _write(tmp_path, text: str):
 def test_the_package_config_loads() -> None:
     """config/engine.yaml is valid, has BA off and boxes the region around each mask peak."""
     config = load_engine_config()
-    assert config.bundle_adjustment is None and config.model.geometry == 'tiny'
+    assert config.bundle_adjustment is None and config.model.geometry == 'tiny_336'
     assert config.detection.peak_region
+
+
+def test_the_package_config_names_the_bundled_models_sizes() -> None:
+    """The default model configs are the bundled checkpoint's own (no "checkpoint wins" warning)."""
+    config = load_engine_config()
+    geometry, hand_branch = load_branch_configs(config.model.geometry, config.model.hand_branch)
+    bundled = read_checkpoint(resolve_checkpoint(config.model.checkpoint))
+    assert bundled.geometry_config == geometry and bundled.hand_config == hand_branch
 
 
 @pytest.mark.parametrize('device, message', [
