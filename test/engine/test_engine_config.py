@@ -28,7 +28,7 @@ def test_the_package_config_loads() -> None:
 
 
 def test_the_package_config_names_the_bundled_models_sizes() -> None:
-    """The default model configs are the bundled checkpoint's own (no "checkpoint wins" warning)."""
+    """The default model configs are the bundled checkpoint's own (no "checkpoint wins")."""
     config = load_engine_config()
     geometry, hand_branch = load_branch_configs(config.model.geometry, config.model.hand_branch)
     bundled = read_checkpoint(resolve_checkpoint(config.model.checkpoint))
