@@ -99,12 +99,16 @@ class DetectionConfig:
             ReLU allows 0, which no camera has).
         peak_region: box only the connected region around each hand mask's peak, so stray pixels
             do not stretch the box (ours; the paper boxes every pixel above the threshold).
+        region_join_px: with ``peak_region``, mask fragments up to ``2 * region_join_px + 1``
+            model-input pixels apart count as one region, so a hand whose mask breaks into
+            pieces is boxed whole (ours; 0: plain 8-connectivity).
 
     """
 
     presence_threshold: float = 0.5
     fov_range_deg: tuple[float, float] = (5.0, 170.0)
     peak_region: bool = False
+    region_join_px: int = 0
 
     def __post_init__(self) -> None:
         if not 0.0 < self.fov_range_deg[0] < self.fov_range_deg[1] < 180.0:
@@ -113,6 +117,10 @@ class DetectionConfig:
         if not 0.0 < self.presence_threshold < 1.0:
             raise ConfigError(f'engine.detection.presence_threshold must be in (0, 1), got '
                               f'{self.presence_threshold}')
+        if (not isinstance(self.region_join_px, int) or isinstance(self.region_join_px, bool)
+                or self.region_join_px < 0):
+            raise ConfigError(f'engine.detection.region_join_px must be a whole number of pixels '
+                              f'>= 0, got {self.region_join_px!r}')
 
 
 @dataclass(frozen=True)

@@ -66,7 +66,8 @@ class StreamingEngine:
         detection = self.config.detection
         self._detection = self.model.hand_detection(detection.presence_threshold,
                                                     detection.fov_range_deg,
-                                                    detection.peak_region)
+                                                    detection.peak_region,
+                                                    detection.region_join_px)
         self._device = next(self.model.parameters()).device
         self._decoder = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_decode')
                          if self.config.mode == 'windowed' else None)

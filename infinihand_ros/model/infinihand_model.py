@@ -55,6 +55,8 @@ class HandDetection:
             ReLU allows 0, which no camera has).
         peak_region: box only the connected region around each mask's peak (ours; the paper boxes
             every pixel above the threshold).
+        region_join_px: with ``peak_region``, mask fragments up to ``2 * region_join_px + 1``
+            model pixels apart count as one region (``mask_head.peak_regions``).
 
     """
 
@@ -63,6 +65,7 @@ class HandDetection:
     presence_threshold: float = 0.5
     fov_range_rad: tuple[float, float] = (math.radians(5.0), math.radians(170.0))
     peak_region: bool = False
+    region_join_px: int = 0
 
 
 @dataclass(frozen=True)
@@ -111,12 +114,12 @@ class InfiniHandModel(nn.Module):
 
     def hand_detection(self, presence_threshold: float = 0.5,
                        fov_range_deg: tuple[float, float] = (5.0, 170.0),
-                       peak_region: bool = False) -> HandDetection:
+                       peak_region: bool = False, region_join_px: int = 0) -> HandDetection:
         """Return detection settings: the geometry config's mask thresholds plus these."""
         masks = self.geometry.config.masks
         return HandDetection(masks.threshold, masks.min_pixels, presence_threshold,
                              (math.radians(fov_range_deg[0]), math.radians(fov_range_deg[1])),
-                             peak_region)
+                             peak_region, region_join_px)
 
     def new_stream(self) -> GeometryStream:
         """Return an empty stream (memories and frame counters) for one sequence."""
@@ -191,7 +194,8 @@ def _detect_hands(masks: torch.Tensor, detection: HandDetection
     peak = masks.amax(dim=(-2, -1))
     tight, valid = masks_to_boxes(masks, detection.mask_threshold, detection.min_pixels,
                                   expand=1.0,  # the hand branch expands boxes itself
-                                  peak_region=detection.peak_region)
+                                  peak_region=detection.peak_region,
+                                  join_px=detection.region_join_px)
     frame, side = torch.nonzero(valid & (peak > detection.presence_threshold), as_tuple=True)
     return HandBoxes(tight[frame, side], frame, side), peak[frame, side]
 

@@ -229,7 +229,8 @@ class TrainConfig:
         horizontal_flip: probability that a clip is mirrored left-right, sides swapped (ours;
             ``horizontal_flip.py``; 0: off).
         peak_region_boxes: predicted boxes cover only the region around each mask's peak, as
-            the engine's ``detection.peak_region`` (ours; off by default).
+            the engine's ``detection.peak_region`` without its ``region_join_px`` (ours; off by
+            default).
         use_gt_intrinsics: run the hand branch with the annotated intrinsics (else the
             predicted ones).
         mask_logit_eps: mask probabilities are clamped to [eps, 1 - eps] before ``logit``

@@ -79,6 +79,10 @@ def test_bad_nested_values_name_their_key(tmp_path) -> None:
     with pytest.raises(ConfigError, match='hand_model.mano_dir'):
         load_engine_config(_write(
             tmp_path, 'engine:\n  model:\n    hand_model: {kind: mano, mano_dir: /nowhere}\n'))
+    for bad in ('-1', '2.5', 'true'):
+        with pytest.raises(ConfigError, match='engine.detection.region_join_px'):
+            load_engine_config(_write(
+                tmp_path, f'engine:\n  detection: {{region_join_px: {bad}}}\n'))
 
 
 def test_dump_config_round_trips_complete(tmp_path) -> None:

@@ -59,3 +59,32 @@ def test_peak_region_joins_diagonal_neighbours_and_counts_only_its_pixels() -> N
     assert valid.tolist() == [True]
     _, valid = masks_to_boxes(masks, 0.5, 3, expand=1.0, peak_region=True)
     assert valid.tolist() == [False]            # 2 pixels around the peak, though 11 in all
+
+
+def test_region_join_px_joins_fragments_within_twice_it_plus_one() -> None:
+    """Fragments up to 2 * join_px + 1 pixels apart join the peak's region; farther ones do not."""
+    masks = torch.zeros(1, 20, 40)
+    masks[0, 5:9, 5:9] = 0.9                    # the peak's fragment, columns 5..8
+    masks[0, 5, 6] = 0.95
+    masks[0, 5:9, 13:16] = 0.8                  # column 13: 5 pixels from column 8
+    masks[0, 5:9, 30:33] = 0.8                  # 15 pixels beyond column 15
+    alone, _ = masks_to_boxes(masks, 0.5, 4, expand=1.0, peak_region=True)
+    torch.testing.assert_close(alone[0], torch.tensor([5.0, 5.0, 9.0, 9.0]))
+    for join_px, right_edge in ((1, 9.0), (2, 16.0), (6, 16.0), (7, 33.0)):
+        boxes, valid = masks_to_boxes(masks, 0.5, 4, expand=1.0, peak_region=True,
+                                      join_px=join_px)
+        torch.testing.assert_close(boxes[0], torch.tensor([5.0, 5.0, right_edge, 9.0]))
+        assert valid.tolist() == [True]
+
+
+def test_region_join_counts_only_pixels_above_the_threshold() -> None:
+    """Joining widens the region's reach, not its pixels: min_pixels still counts mask pixels."""
+    masks = torch.zeros(1, 10, 10)
+    masks[0, 1, 1] = 0.9
+    masks[0, 1, 4] = 0.8                        # 3 pixels away: joined with join_px=1
+    _, valid = masks_to_boxes(masks, 0.5, 2, expand=1.0, peak_region=True, join_px=1)
+    assert valid.tolist() == [True]
+    _, valid = masks_to_boxes(masks, 0.5, 3, expand=1.0, peak_region=True, join_px=1)
+    assert valid.tolist() == [False]
+    with pytest.raises(InputError, match='join distance'):
+        masks_to_boxes(masks, 0.5, 2, expand=1.0, peak_region=True, join_px=-1)

@@ -5,7 +5,8 @@ first output convs) starts as a copy of the depth head's weights, with a freshly
 2-channel final layer: channel 0 = left hand, channel 1 = right hand (``core`` side convention),
 sigmoid outputs. Boxes are the tight boxes of the thresholded masks expanded about their centre;
 optionally (ours, not the paper's) of the connected region around the mask's peak only, so that
-stray pixels away from the hand do not stretch its box.
+stray pixels away from the hand do not stretch its box; fragments of that region a few pixels
+apart (a mask broken across a finger gap or a thin occluder) can be joined into it.
 """
 
 from infinihand_ros.core.errors import InputError
@@ -46,14 +47,19 @@ def activate_masks(raw: torch.Tensor) -> torch.Tensor:
     return torch.sigmoid(raw)
 
 
-def peak_regions(masks: torch.Tensor, inside: torch.Tensor) -> torch.Tensor:
+def peak_regions(masks: torch.Tensor, inside: torch.Tensor, join_px: int = 0) -> torch.Tensor:
     """Return ``inside`` (..., H, W) with only the 8-connected region of each mask's peak kept.
 
     Args:
         masks: (..., H, W) probabilities.
         inside: (..., H, W) bool, the pixels above the threshold.
+        join_px: regions are found on ``inside`` dilated by a square of half-width ``join_px``,
+            so pixels up to ``2 * join_px + 1`` apart (Chebyshev distance) join one region; only
+            ``inside`` pixels are kept. 0: plain 8-connectivity.
 
     """
+    if join_px < 0:
+        raise InputError(f'region join distance must be >= 0 pixels, got {join_px}')
     shape = inside.shape
     probabilities = masks.detach().reshape(-1, shape[-2] * shape[-1]).float().cpu().numpy()
     above = inside.detach().reshape(-1, *shape[-2:]).cpu().numpy()
@@ -62,13 +68,16 @@ def peak_regions(masks: torch.Tensor, inside: torch.Tensor) -> torch.Tensor:
     for index, mask in enumerate(above):
         peak = np.unravel_index(int(np.argmax(probabilities[index])), mask.shape)
         if mask[peak]:
-            labels, _ = ndimage.label(mask, structure=connectivity)
-            kept[index] = labels == labels[peak]
+            joined = (ndimage.maximum_filter(mask, size=2 * join_px + 1, mode='constant')
+                      if join_px else mask)
+            labels, _ = ndimage.label(joined, structure=connectivity)
+            kept[index] = (labels == labels[peak]) & mask
     return torch.from_numpy(kept).reshape(shape).to(inside.device)
 
 
 def masks_to_boxes(masks: torch.Tensor, threshold: float, min_pixels: int, expand: float,
-                   peak_region: bool = False) -> tuple[torch.Tensor, torch.Tensor]:
+                   peak_region: bool = False, join_px: int = 0
+                   ) -> tuple[torch.Tensor, torch.Tensor]:
     """Return expanded boxes and validity from hand masks.
 
     Args:
@@ -77,6 +86,8 @@ def masks_to_boxes(masks: torch.Tensor, threshold: float, min_pixels: int, expan
         min_pixels: fewer hand pixels than this -> no box (valid False).
         expand: the tight box's width and height are multiplied by this about its centre.
         peak_region: box (and count) only the 8-connected region around each mask's peak.
+        join_px: with ``peak_region``, fragments up to ``2 * join_px + 1`` pixels apart join the
+            peak's region (``peak_regions``).
 
     Returns:
         boxes: (..., 4) float32 ``[x0, y0, x1, y1]`` in pixels (pixel-edge coordinates, so a
@@ -93,7 +104,7 @@ def masks_to_boxes(masks: torch.Tensor, threshold: float, min_pixels: int, expan
         raise InputError(f'box expand factor must be positive, got {expand}')
     inside = masks > threshold
     if peak_region:
-        inside = peak_regions(masks, inside)
+        inside = peak_regions(masks, inside, join_px)
     height, width = inside.shape[-2:]
     rows = inside.any(dim=-1)
     cols = inside.any(dim=-2)
