@@ -7,15 +7,16 @@
 # processes from round 2 on (DistributedDataParallel), rounds 14 and 15 (Stage II with the whole
 # geometry branch, then the heads again; run on a GPU machine by scripts/train_gpu_round.sh, here
 # the same steps on one CPU process), round 16 (the heads in round 13's setting again, 2 CPU
-# processes), round 18 (the same setting at a 336 x 252 input), then export and evaluation (the
-# engine alone, and the full system with sparse BA).
+# processes), round 18 (the same setting at a 336 x 252 input), round 19 (the same again on new
+# scenes at that input), then export and evaluation (the engine alone, and the full system with
+# sparse BA).
 # Every step resumes: run it again after an interruption and it continues where it stopped.
 # Outputs go to runs/ (ignored by git).
 # Usage: scripts/train_embedded_model.sh [STAGE1_STEPS [STAGE2_STEPS [ROUND2_STAGE1_STEPS
 # [ROUND2_STAGE2_STEPS [CAMERA_STEPS [MOTION_STEPS [HEADS_STEPS [WIDE_HEADS_STEPS
 # [WIDER_HEADS_STEPS [SHORT_HEADS_STEPS [AUG_HEADS_STEPS [ROUND13_STEPS [ROUND14_JOINT_STEPS
 # [ROUND14_HEADS_STEPS [ROUND15_JOINT_STEPS [ROUND15_HEADS_STEPS [ROUND16_STEPS
-# [ROUND18_STEPS]]]]]]]]]]]]]]]]]]
+# [ROUND18_STEPS [ROUND19_STEPS]]]]]]]]]]]]]]]]]]]
 set -eo pipefail
 cd "$(dirname "$0")/.."
 source scripts/env.sh
@@ -37,6 +38,7 @@ ROUND15_JOINT_STEPS=${15:-447}
 ROUND15_HEADS_STEPS=${16:-413}
 ROUND16_STEPS=${17:-2300}
 ROUND18_STEPS=${18:-2000}
+ROUND19_STEPS=${19:-2000}
 
 generate() {  # generate OUT SEED FRAMES FPS WIDTH HEIGHT: one sample directory, if missing
   if [ ! -f "$1/samples/meta.json" ]; then
@@ -100,6 +102,8 @@ generate_short runs/synth_train_r16 120000-120794 121000-121775
 generate_short runs/synth_train_r17 130000-130602 131000-131606
 # and round 18's at its 336 x 252 input, made the same way.
 TRAIN_SIZE='336 252' generate_short runs/synth_train_r18 140000-140775 141000-141771
+# and round 19's the same way (8 minutes; the ranges each process finished).
+TRAIN_SIZE='336 252' generate_short runs/synth_train_r19 150000-150814 151000-151819
 generate_eval_set() {  # generate_eval_set DIR FIRST_SEED: 12 sequences, 6 at 15 FPS, 6 at 30
   local i seed fps
   for i in $(seq 0 11); do
@@ -215,9 +219,15 @@ train_stage 2 runs/tiny_stage1q --config config/train_tiny_stage1_heads_aug.yaml
   --steps "$ROUND18_STEPS" --init runs/tiny_stage1p_336 \
   --data runs/synth_train_r18 runs/synth_train_r17 runs/synth_train_r16
 
-python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1q/checkpoints/final/model \
-  --out models/tiny_synthetic --train-sequences runs/synth_train_r18 runs/synth_train_r17 \
-  runs/synth_train_r16 --overwrite
+# Round 19 (bundled): round 18's setting from round 18 on round 19's 1,635 new scenes and round
+# 18's, all at 336 x 252. The bundled round 19 started from round 18's float16 export.
+train_stage 2 runs/tiny_stage1r --config config/train_tiny_stage1_heads_aug.yaml \
+  --steps "$ROUND19_STEPS" --init runs/tiny_stage1q/checkpoints/final/model \
+  --data runs/synth_train_r19 runs/synth_train_r18
+
+python -m infinihand_ros.model.io.export --checkpoint runs/tiny_stage1r/checkpoints/final/model \
+  --out models/tiny_synthetic --train-sequences runs/synth_train_r19 runs/synth_train_r18 \
+  --overwrite
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/heldout/* \
   --poses live --save-predictions runs/eval_heldout | tee runs/eval_heldout.md
 python -m infinihand_ros.eval --checkpoint models/tiny_synthetic --sequences runs/val/* \
