@@ -117,10 +117,9 @@ class DetectionConfig:
         if not 0.0 < self.presence_threshold < 1.0:
             raise ConfigError(f'engine.detection.presence_threshold must be in (0, 1), got '
                               f'{self.presence_threshold}')
-        if (not isinstance(self.region_join_px, int) or isinstance(self.region_join_px, bool)
-                or self.region_join_px < 0):
-            raise ConfigError(f'engine.detection.region_join_px must be a whole number of pixels '
-                              f'>= 0, got {self.region_join_px!r}')
+        if self.region_join_px < 0:  # the loader has checked it is an int
+            raise ConfigError(f'engine.detection.region_join_px must be >= 0 pixels, got '
+                              f'{self.region_join_px}')
 
 
 @dataclass(frozen=True)
