@@ -32,13 +32,13 @@ setup(
         'console_scripts': [
             f'synth = {PACKAGE_NAME}.synth.cli:main',
             f'train = {PACKAGE_NAME}.train.cli:main',
-            f'estimator = {PACKAGE_NAME}.ros.estimator_main:main',
-            f'replay = {PACKAGE_NAME}.ros.replay_cli:main',
-            f'record = {PACKAGE_NAME}.ros.record_cli:main',
-            f'bundle_adjustment = {PACKAGE_NAME}.ros.bundle_adjustment_main:main',
+            f'estimator = {PACKAGE_NAME}.ros.estimator.main:main',
+            f'replay = {PACKAGE_NAME}.tools.replay:main',
+            f'record = {PACKAGE_NAME}.tools.record:main',
+            f'bundle_adjustment = {PACKAGE_NAME}.ros.bundle_adjustment.main:main',
             f'bag_to_dataset = {PACKAGE_NAME}.convert.cli:console_main',
             f'build_corpus = {PACKAGE_NAME}.data.corpus_cli:main',
-            f'live_demo = {PACKAGE_NAME}.ros.live_demo:main',
+            f'live_demo = {PACKAGE_NAME}.tools.live_demo:main',
         ],
     },
 )

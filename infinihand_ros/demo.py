@@ -7,7 +7,7 @@ the bag's frames through the engine with the embedded trained model and sparse b
 adjustment (the full system, as an offline run: the stream waits for BA and the final, refined
 trajectory is scored) and evaluates the estimates against the bag's ground truth (``eval/``):
 it prints the evaluation tables (ours beside the baselines) and writes the prediction file and
-the plots into ``--out``/eval. Then the live path (``ros/live_demo.py``): the bag replayed at
+the plots into ``--out``/eval. Then the live path (``tools/live_demo.py``): the bag replayed at
 10 Hz into the installed estimator node, its outputs recorded and evaluated the same way, into
 ``--out``/live.
 """
@@ -38,12 +38,12 @@ from infinihand_ros.eval.cli import save_outputs
 from infinihand_ros.eval.report import markdown_tables
 from infinihand_ros.eval.runner import evaluate
 from infinihand_ros.eval.sequences import open_eval_sequence
-from infinihand_ros.ros import live_demo
-from infinihand_ros.ros.live_demo import LiveDemoOptions
 from infinihand_ros.synth import cli
 from infinihand_ros.synth.sample_bag import load_sample_settings
 from infinihand_ros.synth.sample_bag import sample_bag_path
 from infinihand_ros.synth.sample_bag import sample_sequence
+from infinihand_ros.tools import live_demo
+from infinihand_ros.tools.live_demo import LiveDemoOptions
 import numpy as np
 
 #: Largest ground-truth difference (m) between the bag and a fresh generation that still counts

@@ -16,7 +16,7 @@ from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import Quaternion
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.hand_conventions import JOINT_NAMES
-from infinihand_ros.ros.diagnostics_report import DiagnosticReport
+from infinihand_ros.ros.estimator.diagnostics import DiagnosticReport
 from infinihand_ros.vis.markers import LINE_LIST
 from infinihand_ros.vis.markers import LINE_STRIP
 from infinihand_ros.vis.markers import MarkerSpec

@@ -5,7 +5,7 @@ import contextlib
 from pathlib import Path
 import subprocess
 
-from infinihand_ros.ros import node_processes
+from infinihand_ros.tools import node_processes
 
 ROOT = Path(__file__).resolve().parents[2]
 LIB = ROOT / 'install' / 'infinihand_ros' / 'lib' / 'infinihand_ros'

@@ -1,13 +1,13 @@
-"""The BA node's parameters and BA settings (ros/bundle_adjustment_config.py)."""
+"""The BA node's parameters and BA settings (ros/bundle_adjustment/config.py)."""
 
 from pathlib import Path
 
 from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.ros.bundle_adjustment_config import ba_node_config_from_parameters
-from infinihand_ros.ros.bundle_adjustment_config import BA_NODE_PARAMETER_SPECS
-from infinihand_ros.ros.bundle_adjustment_config import BundleAdjustmentNodeConfig
-from infinihand_ros.ros.bundle_adjustment_config import load_ba_node_defaults
+from infinihand_ros.ros.bundle_adjustment.config import ba_node_config_from_parameters
+from infinihand_ros.ros.bundle_adjustment.config import BA_NODE_PARAMETER_SPECS
+from infinihand_ros.ros.bundle_adjustment.config import BundleAdjustmentNodeConfig
+from infinihand_ros.ros.bundle_adjustment.config import load_ba_node_defaults
 import pytest
 
 

@@ -10,11 +10,11 @@ import signal
 import time
 
 from infinihand_ros.bag.reader import BagReader
-from infinihand_ros.ros.node_processes import fresh_domain_id
-from infinihand_ros.ros.node_processes import interrupt
-from infinihand_ros.ros.node_processes import ros_env
-from infinihand_ros.ros.node_processes import wait_for_count
-from infinihand_ros.ros.node_processes import wait_for_text
+from infinihand_ros.tools.node_processes import fresh_domain_id
+from infinihand_ros.tools.node_processes import interrupt
+from infinihand_ros.tools.node_processes import ros_env
+from infinihand_ros.tools.node_processes import wait_for_count
+from infinihand_ros.tools.node_processes import wait_for_text
 from live_processes import LIB
 from live_processes import NODE
 from live_processes import REMAPS

@@ -3,8 +3,8 @@
 from pathlib import Path
 import subprocess
 
-from infinihand_ros.ros.node_processes import fresh_domain_id
-from infinihand_ros.ros.node_processes import ros_env
+from infinihand_ros.tools.node_processes import fresh_domain_id
+from infinihand_ros.tools.node_processes import ros_env
 from live_processes import LIB
 import pytest
 

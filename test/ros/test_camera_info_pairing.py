@@ -1,14 +1,14 @@
-"""CameraInfo pairing by stamp, validation and fallback (ros/camera_info_pairing.py)."""
+"""CameraInfo pairing by stamp, validation and fallback (ros/estimator/camera_info_pairing.py)."""
 
 from types import SimpleNamespace
 
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.ros.camera_info_pairing import CameraInfoPairing
-from infinihand_ros.ros.camera_info_pairing import fallback_intrinsics
-from infinihand_ros.ros.camera_info_pairing import FROM_CAMERA_INFO
-from infinihand_ros.ros.camera_info_pairing import FROM_FALLBACK
-from infinihand_ros.ros.camera_info_pairing import FROM_MODEL
-from infinihand_ros.ros.estimator_config import FallbackIntrinsics
+from infinihand_ros.ros.estimator.camera_info_pairing import CameraInfoPairing
+from infinihand_ros.ros.estimator.camera_info_pairing import fallback_intrinsics
+from infinihand_ros.ros.estimator.camera_info_pairing import FROM_CAMERA_INFO
+from infinihand_ros.ros.estimator.camera_info_pairing import FROM_FALLBACK
+from infinihand_ros.ros.estimator.camera_info_pairing import FROM_MODEL
+from infinihand_ros.ros.estimator.config import FallbackIntrinsics
 import pytest
 
 MS = 1_000_000

@@ -1,6 +1,6 @@
-"""The bounded, refreshable camera path (ros/camera_path.py)."""
+"""The bounded, refreshable camera path (ros/estimator/camera_path.py)."""
 
-from infinihand_ros.ros.camera_path import CameraPath
+from infinihand_ros.ros.estimator.camera_path import CameraPath
 from infinihand_ros.vis.output_fields import PoseFields
 import numpy as np
 

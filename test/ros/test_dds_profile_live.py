@@ -3,9 +3,9 @@
 from pathlib import Path
 import time
 
-from infinihand_ros.ros.node_processes import fresh_domain_id
-from infinihand_ros.ros.node_processes import interrupt
-from infinihand_ros.ros.node_processes import ros_env
+from infinihand_ros.tools.node_processes import fresh_domain_id
+from infinihand_ros.tools.node_processes import interrupt
+from infinihand_ros.tools.node_processes import ros_env
 from live_processes import LIB
 from live_processes import running
 import pytest

@@ -1,13 +1,13 @@
-"""The /diagnostics status (ros/diagnostics_report.py)."""
+"""The /diagnostics status (ros/estimator/diagnostics.py)."""
 
 from dataclasses import replace
 
-from infinihand_ros.ros.diagnostics_report import ba_state
-from infinihand_ros.ros.diagnostics_report import diagnostic_report
-from infinihand_ros.ros.estimator_statistics import OK
-from infinihand_ros.ros.estimator_statistics import STALE
-from infinihand_ros.ros.estimator_statistics import StatisticsSnapshot
-from infinihand_ros.ros.estimator_statistics import WARN
+from infinihand_ros.ros.estimator.diagnostics import ba_state
+from infinihand_ros.ros.estimator.diagnostics import diagnostic_report
+from infinihand_ros.ros.estimator.node_statistics import OK
+from infinihand_ros.ros.estimator.node_statistics import STALE
+from infinihand_ros.ros.estimator.node_statistics import StatisticsSnapshot
+from infinihand_ros.ros.estimator.node_statistics import WARN
 
 RUNNING = StatisticsSnapshot(10.0, 9.5, 40.0, 80.0, 20.0, 30.0, 100, 0, 0, 95, 0.05)
 ENGINE = {'metric_scale': 0.25, 'metric_scale_state': 'tracking', 'pose_version': 4, 'ba': None}

@@ -1,11 +1,11 @@
-"""The node's engine configuration (ros/engine_setup.py)."""
+"""The node's engine configuration (ros/estimator/engine_setup.py)."""
 
 from pathlib import Path
 
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.config import load_engine_config
-from infinihand_ros.ros.engine_setup import engine_config_for
-from infinihand_ros.ros.estimator_config import EngineSelection
+from infinihand_ros.ros.estimator.config import EngineSelection
+from infinihand_ros.ros.estimator.engine_setup import engine_config_for
 import pytest
 
 

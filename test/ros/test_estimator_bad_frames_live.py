@@ -4,10 +4,10 @@ from pathlib import Path
 import signal
 import time
 
-from infinihand_ros.ros.node_processes import fresh_domain_id
-from infinihand_ros.ros.node_processes import interrupt
-from infinihand_ros.ros.node_processes import ros_env
-from infinihand_ros.ros.node_processes import wait_for_text
+from infinihand_ros.tools.node_processes import fresh_domain_id
+from infinihand_ros.tools.node_processes import interrupt
+from infinihand_ros.tools.node_processes import ros_env
+from infinihand_ros.tools.node_processes import wait_for_text
 from live_processes import LIB
 from live_processes import running
 import numpy as np

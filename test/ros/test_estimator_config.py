@@ -1,16 +1,16 @@
-"""The estimator's parameter tree, defaults file and specs (ros/estimator_config.py)."""
+"""The estimator's parameter tree, defaults file and specs (ros/estimator/config.py)."""
 
 import dataclasses
 from pathlib import Path
 
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.ros.estimator_config import estimator_config_from_parameters
-from infinihand_ros.ros.estimator_config import EstimatorConfig
-from infinihand_ros.ros.estimator_config import flatten
-from infinihand_ros.ros.estimator_config import load_estimator_defaults
-from infinihand_ros.ros.estimator_config import load_node_defaults
-from infinihand_ros.ros.estimator_config import unflatten
-from infinihand_ros.ros.estimator_parameters import PARAMETER_SPECS
+from infinihand_ros.ros.estimator.config import estimator_config_from_parameters
+from infinihand_ros.ros.estimator.config import EstimatorConfig
+from infinihand_ros.ros.estimator.config import flatten
+from infinihand_ros.ros.estimator.config import load_estimator_defaults
+from infinihand_ros.ros.estimator.config import load_node_defaults
+from infinihand_ros.ros.estimator.config import unflatten
+from infinihand_ros.ros.estimator.parameter_specs import PARAMETER_SPECS
 import pytest
 
 

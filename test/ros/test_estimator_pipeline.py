@@ -1,4 +1,4 @@
-"""The node's per-frame rules around the engine (ros/estimator_pipeline.py), with a stub engine."""
+"""The node's per-frame rules around the engine (ros/estimator/pipeline.py), with a stub engine."""
 
 from dataclasses import replace
 from types import SimpleNamespace
@@ -7,12 +7,12 @@ from infinihand_ros.core import geometry
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.engine.output.config import ShapeConfig
 from infinihand_ros.engine.pose_track import TrackedPose
 from infinihand_ros.mano.builtin import BuiltinHandModel
-from infinihand_ros.ros.estimator_config import CameraSettings
-from infinihand_ros.ros.estimator_config import EstimatorConfig
-from infinihand_ros.ros.estimator_config import ShapeConfig
-from infinihand_ros.ros.estimator_pipeline import EstimatorPipeline
+from infinihand_ros.ros.estimator.config import CameraSettings
+from infinihand_ros.ros.estimator.config import EstimatorConfig
+from infinihand_ros.ros.estimator.pipeline import EstimatorPipeline
 import numpy as np
 from ros_builders import make_hand
 from ros_builders import make_result

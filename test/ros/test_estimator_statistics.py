@@ -1,8 +1,8 @@
-"""Rates, latency percentiles and counters (ros/estimator_statistics.py)."""
+"""Rates, latency percentiles and counters (ros/estimator/node_statistics.py)."""
 
 import math
 
-from infinihand_ros.ros.estimator_statistics import EstimatorStatistics
+from infinihand_ros.ros.estimator.node_statistics import EstimatorStatistics
 import pytest
 
 

@@ -1,10 +1,10 @@
-"""Engine results to output fields (ros/frame_outputs.py, vis/output_fields.py), by hand."""
+"""Engine results to output fields (ros/estimator/frame_outputs.py, vis/output_fields.py)."""
 
 from infinihand_ros.core import geometry
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.ros.frame_outputs import frame_output
+from infinihand_ros.ros.estimator.frame_outputs import frame_output
 from infinihand_ros.vis.output_fields import hand_output
 import numpy as np
 from ros_builders import make_hand

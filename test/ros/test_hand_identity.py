@@ -1,9 +1,9 @@
-"""Per-side hand identity over time (ros/hand_identity.py)."""
+"""Per-side hand identity over time (engine/output/identity.py)."""
 
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.ros.estimator_config import IdentityConfig
-from infinihand_ros.ros.hand_identity import HandIdentityTracker
+from infinihand_ros.engine.output.config import IdentityConfig
+from infinihand_ros.engine.output.identity import HandIdentityTracker
 from ros_builders import make_hand
 
 SIZE = (640, 480)  # diagonal 800 px: radius 0.25 -> 200 px

@@ -1,11 +1,11 @@
-"""Smoothing of the hand outputs per side (ros/hand_smoothing.py)."""
+"""Smoothing of the hand outputs per side (engine/output/smoothing.py)."""
 
 import math
 
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.ros.estimator_config import SmoothingConfig
-from infinihand_ros.ros.hand_smoothing import HandSmoother
+from infinihand_ros.engine.output.config import SmoothingConfig
+from infinihand_ros.engine.output.smoothing import HandSmoother
 import numpy as np
 from ros_builders import make_hand
 from ros_builders import PALM_JOINTS

@@ -1,12 +1,12 @@
-"""Image / CompressedImage decoding of the estimator node (ros/image_decoding.py)."""
+"""Image / CompressedImage decoding of the estimator node (ros/estimator/image_decoding.py)."""
 
 from dataclasses import dataclass
 from types import SimpleNamespace
 
 import cv2
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.ros.image_decoding import compressed_codec
-from infinihand_ros.ros.image_decoding import decode_image
+from infinihand_ros.ros.estimator.image_decoding import compressed_codec
+from infinihand_ros.ros.estimator.image_decoding import decode_image
 import numpy as np
 import pytest
 

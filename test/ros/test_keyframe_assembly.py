@@ -1,6 +1,6 @@
-"""Keyframe parts put back together by stamp (ros/keyframe_assembly.py)."""
+"""Keyframe parts put back together by stamp (ros/bundle_adjustment/keyframe_assembly.py)."""
 
-from infinihand_ros.ros.keyframe_assembly import KeyframeAssembler
+from infinihand_ros.ros.bundle_adjustment.keyframe_assembly import KeyframeAssembler
 import pytest
 
 PARTS = ('image', 'depth', 'pose')

@@ -1,12 +1,12 @@
-"""Keyframes for the BA node, its corrections into the pose track (ros/keyframe_export.py)."""
+"""Keyframes for the BA node, corrections into the pose track (estimator/keyframe_export.py)."""
 
 from dataclasses import replace
 
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.pose_track import PoseTrack
 from infinihand_ros.engine.pose_track import PoseTrackConfig
-from infinihand_ros.ros.keyframe_export import apply_corrections
-from infinihand_ros.ros.keyframe_export import keyframe_for_ba
+from infinihand_ros.ros.estimator.keyframe_export import apply_corrections
+from infinihand_ros.ros.estimator.keyframe_export import keyframe_for_ba
 import numpy as np
 from ros_builders import INTRINSICS
 from ros_builders import make_hand

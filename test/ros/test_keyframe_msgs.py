@@ -1,4 +1,4 @@
-"""Keyframe and correction messages between the nodes (ros/keyframe_msgs.py)."""
+"""Keyframe and correction messages between the nodes (ros/bundle_adjustment/keyframe_msgs.py)."""
 
 from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.core import geometry
@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 pytest.importorskip('rclpy', reason='rclpy is not importable (source scripts/env.sh)')
-keyframe_msgs = pytest.importorskip('infinihand_ros.ros.keyframe_msgs')
+keyframe_msgs = pytest.importorskip('infinihand_ros.ros.bundle_adjustment.keyframe_msgs')
 
 pytestmark = pytest.mark.ros
 INTRINSICS = Intrinsics(300.0, 310.0, 20.5, 15.5, 40, 30)

@@ -1,17 +1,17 @@
-"""The live demo (ros/live_demo.py): arguments, the replayed segment, and one short live run."""
+"""The live demo (tools/live_demo.py): arguments, the replayed segment, and one short live run."""
 
 from pathlib import Path
 import re
 import subprocess
 
 from infinihand_ros.eval.prediction_files import read_predictions
-from infinihand_ros.ros.node_processes import fresh_domain_id
-from infinihand_ros.ros.node_processes import ros_env
+from infinihand_ros.tools.node_processes import fresh_domain_id
+from infinihand_ros.tools.node_processes import ros_env
 from live_processes import LIB
 from live_processes import SAMPLE_BAG
 import pytest
 
-live_demo = pytest.importorskip('infinihand_ros.ros.live_demo', reason='needs rclpy')
+live_demo = pytest.importorskip('infinihand_ros.tools.live_demo', reason='needs rclpy')
 
 pytestmark = pytest.mark.ros
 SECONDS = 4.0

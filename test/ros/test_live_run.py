@@ -1,11 +1,11 @@
-"""The live run's settings and topics (ros/live_run.py)."""
+"""The live run's settings and topics (tools/live_run.py)."""
 
 from pathlib import Path
 
 from infinihand_ros.core.errors import InfiniHandError
 import pytest
 
-live_run = pytest.importorskip('infinihand_ros.ros.live_run', reason='needs rclpy')
+live_run = pytest.importorskip('infinihand_ros.tools.live_run', reason='needs rclpy')
 
 pytestmark = pytest.mark.ros
 

@@ -1,7 +1,7 @@
 """rclpy output messages from the plain output fields (ros/msg_builders.py)."""
 
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.ros.diagnostics_report import DiagnosticReport
+from infinihand_ros.ros.estimator.diagnostics import DiagnosticReport
 from infinihand_ros.vis.markers import hand_markers
 from infinihand_ros.vis.output_fields import hand_output
 from infinihand_ros.vis.output_fields import PoseFields

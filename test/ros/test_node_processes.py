@@ -1,14 +1,14 @@
-"""Subprocess helpers of the live runs (ros/node_processes.py)."""
+"""Subprocess helpers of the live runs (tools/node_processes.py)."""
 
 from pathlib import Path
 import sys
 
 from infinihand_ros.core.errors import InfiniHandError
-from infinihand_ros.ros.node_processes import fresh_domain_id
-from infinihand_ros.ros.node_processes import package_executable
-from infinihand_ros.ros.node_processes import ros_env
-from infinihand_ros.ros.node_processes import running
-from infinihand_ros.ros.node_processes import wait_for_text
+from infinihand_ros.tools.node_processes import fresh_domain_id
+from infinihand_ros.tools.node_processes import package_executable
+from infinihand_ros.tools.node_processes import ros_env
+from infinihand_ros.tools.node_processes import running
+from infinihand_ros.tools.node_processes import wait_for_text
 from live_processes import LIB
 import pytest
 

@@ -1,10 +1,10 @@
-"""The One-Euro filter (ros/one_euro.py), against values worked out by hand."""
+"""The One-Euro filter (engine/output/one_euro.py), against values worked out by hand."""
 
 import math
 
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.ros.one_euro import OneEuroFilter
-from infinihand_ros.ros.one_euro import smoothing_factor
+from infinihand_ros.engine.output.one_euro import OneEuroFilter
+from infinihand_ros.engine.output.one_euro import smoothing_factor
 import numpy as np
 import pytest
 

@@ -1,12 +1,12 @@
-"""Argument checks of the replay and record commands (ros/replay_cli.py, ros/record_cli.py)."""
+"""Argument checks of the replay and record commands (tools/replay.py, tools/record.py)."""
 
 from pathlib import Path
 
 from live_processes import SAMPLE_BAG
 import pytest
 
-record_cli = pytest.importorskip('infinihand_ros.ros.record_cli', reason='needs rclpy')
-replay_cli = pytest.importorskip('infinihand_ros.ros.replay_cli', reason='needs rclpy')
+record_cli = pytest.importorskip('infinihand_ros.tools.record', reason='needs rclpy')
+replay_cli = pytest.importorskip('infinihand_ros.tools.replay', reason='needs rclpy')
 
 pytestmark = pytest.mark.ros
 

@@ -1,4 +1,4 @@
-"""One shape per side over time (ros/shape_consensus.py)."""
+"""One shape per side over time (engine/output/shape.py)."""
 
 from dataclasses import replace
 
@@ -6,10 +6,10 @@ from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.engine.output.config import ShapeConfig
+from infinihand_ros.engine.output.shape import reshape_hand
+from infinihand_ros.engine.output.shape import ShapeConsensus
 from infinihand_ros.mano.builtin import BuiltinHandModel
-from infinihand_ros.ros.estimator_config import ShapeConfig
-from infinihand_ros.ros.shape_consensus import reshape_hand
-from infinihand_ros.ros.shape_consensus import ShapeConsensus
 import numpy as np
 from ros_builders import make_hand
 import torch

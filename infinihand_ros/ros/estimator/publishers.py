@@ -11,8 +11,8 @@ from geometry_msgs.msg import PoseStamped
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.ros import msg_builders
-from infinihand_ros.ros.estimator_config import OutputSwitches
-from infinihand_ros.ros.frame_outputs import FrameOutput
+from infinihand_ros.ros.estimator.config import OutputSwitches
+from infinihand_ros.ros.estimator.frame_outputs import FrameOutput
 from infinihand_ros.vis.markers import hand_markers
 from infinihand_ros.vis.markers import MarkerSpec
 from infinihand_ros.vis.markers import path_marker

@@ -12,14 +12,14 @@ from dataclasses import dataclass
 import math
 from typing import Final
 
-from infinihand_ros.ros.ba_link import UNAVAILABLE
-from infinihand_ros.ros.camera_info_pairing import FROM_CAMERA_INFO
-from infinihand_ros.ros.camera_info_pairing import FROM_FALLBACK
-from infinihand_ros.ros.camera_info_pairing import FROM_MODEL
-from infinihand_ros.ros.estimator_statistics import OK
-from infinihand_ros.ros.estimator_statistics import STALE
-from infinihand_ros.ros.estimator_statistics import StatisticsSnapshot
-from infinihand_ros.ros.estimator_statistics import WARN
+from infinihand_ros.ros.estimator.ba_link import UNAVAILABLE
+from infinihand_ros.ros.estimator.camera_info_pairing import FROM_CAMERA_INFO
+from infinihand_ros.ros.estimator.camera_info_pairing import FROM_FALLBACK
+from infinihand_ros.ros.estimator.camera_info_pairing import FROM_MODEL
+from infinihand_ros.ros.estimator.node_statistics import OK
+from infinihand_ros.ros.estimator.node_statistics import STALE
+from infinihand_ros.ros.estimator.node_statistics import StatisticsSnapshot
+from infinihand_ros.ros.estimator.node_statistics import WARN
 
 
 #: Intrinsics sources, each reported as ``intrinsics_from_<source>`` (frames since start).

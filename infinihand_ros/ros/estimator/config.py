@@ -18,6 +18,9 @@ from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.config import MODES
+from infinihand_ros.engine.output.config import IdentityConfig
+from infinihand_ros.engine.output.config import ShapeConfig
+from infinihand_ros.engine.output.config import SmoothingConfig
 
 NODE_NAME: Final = 'infinihand_estimator'
 PARAMS_FILE: Final = 'estimator.yaml'
@@ -25,7 +28,6 @@ ROS_PARAMETERS_KEY: Final = 'ros__parameters'
 #: The params-file key that matches every node (ROS 2 wildcard).
 ANY_NODE_KEY: Final = '/**'
 CAMERA_MOTIONS: Final = ('estimate', 'static')
-SMOOTHING_MODES: Final = ('none', 'one_euro')  # not 'off': YAML reads a bare off as false
 BA_MODES: Final = ('none', 'in_process', 'node')
 
 
@@ -122,49 +124,6 @@ class OutputSwitches:
 
     def __post_init__(self) -> None:
         require_at_least('outputs', 1, path_length=self.path_length)
-
-
-@dataclass(frozen=True)
-class SmoothingConfig:
-    """One-Euro smoothing of the teleop outputs (parameters ``smoothing.*``)."""
-
-    mode: str = 'none'
-    min_cutoff_hz: float = 1.0
-    beta: float = 0.0
-    d_cutoff_hz: float = 1.0
-
-    def __post_init__(self) -> None:
-        _require_choice('smoothing.mode', self.mode, SMOOTHING_MODES)
-        require_positive('smoothing', min_cutoff_hz=self.min_cutoff_hz,
-                         d_cutoff_hz=self.d_cutoff_hz)
-        require_at_least('smoothing', 0.0, beta=self.beta)
-
-
-@dataclass(frozen=True)
-class IdentityConfig:
-    """Per-side hand identity over time (parameters ``identity.*``)."""
-
-    match_radius: float = 0.25
-    max_gap_s: float = 0.5
-
-    def __post_init__(self) -> None:
-        require_positive('identity', match_radius=self.match_radius,
-                         max_gap_s=self.max_gap_s)
-
-
-@dataclass(frozen=True)
-class ShapeConfig:
-    """One hand shape per side over time (parameters ``shape.*``)."""
-
-    enabled: bool = True
-    min_confidence: float = 0.7
-    min_samples: int = 10
-
-    def __post_init__(self) -> None:
-        if not 0.0 <= self.min_confidence <= 1.0:
-            raise ConfigError(f'shape.min_confidence: must be in [0, 1], got '
-                              f'{self.min_confidence}')
-        require_at_least('shape', 1, min_samples=self.min_samples)
 
 
 @dataclass(frozen=True)

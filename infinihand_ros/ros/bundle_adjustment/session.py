@@ -22,7 +22,7 @@ from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.keyframe_pool import BinaryKeyframePool
 from infinihand_ros.ba.worker import BAWorkerError
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
-from infinihand_ros.ros.keyframe_msgs import Corrections
+from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import Corrections
 import numpy as np
 
 logger = logging.getLogger(__name__)

@@ -8,8 +8,8 @@ with ``engine.bundle_adjustment:=node``; either may start first or restart.
 
 import sys
 
-from infinihand_ros.ros.bundle_adjustment_config import BA_NODE_NAME
-from infinihand_ros.ros.bundle_adjustment_node import BundleAdjustmentNode
+from infinihand_ros.ros.bundle_adjustment.config import BA_NODE_NAME
+from infinihand_ros.ros.bundle_adjustment.node import BundleAdjustmentNode
 from infinihand_ros.ros.node_process import run_node
 
 

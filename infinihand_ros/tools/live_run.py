@@ -19,10 +19,10 @@ from typing import Final
 from infinihand_ros.core import topics
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.eval.recorded import RecordedTopics
-from infinihand_ros.ros import node_processes
-from infinihand_ros.ros.estimator_config import BA_MODES
-from infinihand_ros.ros.estimator_config import NODE_NAME
-from infinihand_ros.ros.record_cli import RECORDING
+from infinihand_ros.ros.estimator.config import BA_MODES
+from infinihand_ros.ros.estimator.config import NODE_NAME
+from infinihand_ros.tools import node_processes
+from infinihand_ros.tools.record import RECORDING
 
 NODE: Final = f'/{NODE_NAME}'
 ESTIMATOR_READY: Final = 'ready: engine'

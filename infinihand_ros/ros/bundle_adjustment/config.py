@@ -19,9 +19,9 @@ from infinihand_ros.core.config import config_from_dict
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.ros.estimator_config import load_node_defaults
-from infinihand_ros.ros.estimator_config import unflatten
-from infinihand_ros.ros.estimator_parameters import ParameterSpec
+from infinihand_ros.ros.estimator.config import load_node_defaults
+from infinihand_ros.ros.estimator.config import unflatten
+from infinihand_ros.ros.estimator.parameter_specs import ParameterSpec
 
 BA_NODE_NAME: Final = 'infinihand_bundle_adjustment'
 BA_PARAMS_FILE: Final = 'bundle_adjustment.yaml'

@@ -12,7 +12,7 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.config import check_device
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
-from infinihand_ros.ros.estimator_config import EngineSelection
+from infinihand_ros.ros.estimator.config import EngineSelection
 
 
 def engine_config_for(selection: EngineSelection) -> EngineConfig:

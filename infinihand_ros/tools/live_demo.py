@@ -35,11 +35,11 @@ from infinihand_ros.eval.recorded import read_recorded
 from infinihand_ros.eval.recorded import segment
 from infinihand_ros.eval.report import markdown_tables
 from infinihand_ros.eval.sequences import open_eval_sequence
-from infinihand_ros.ros.estimator_config import BA_MODES
-from infinihand_ros.ros.live_run import LiveRunSpec
-from infinihand_ros.ros.live_run import recorded_topics
-from infinihand_ros.ros.live_run import run_live
+from infinihand_ros.ros.estimator.config import BA_MODES
 from infinihand_ros.synth.sample_bag import sample_bag_path
+from infinihand_ros.tools.live_run import LiveRunSpec
+from infinihand_ros.tools.live_run import recorded_topics
+from infinihand_ros.tools.live_run import run_live
 
 EXIT_OK: Final = 0
 EXIT_FAILED: Final = 1

@@ -10,11 +10,11 @@ the parameter, and the config tree then checks the choices.
 from typing import Any
 
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.ros.estimator_config import estimator_config_from_parameters
-from infinihand_ros.ros.estimator_config import EstimatorConfig
-from infinihand_ros.ros.estimator_config import load_estimator_defaults
-from infinihand_ros.ros.estimator_parameters import PARAMETER_SPECS
-from infinihand_ros.ros.estimator_parameters import ParameterSpec
+from infinihand_ros.ros.estimator.config import estimator_config_from_parameters
+from infinihand_ros.ros.estimator.config import EstimatorConfig
+from infinihand_ros.ros.estimator.config import load_estimator_defaults
+from infinihand_ros.ros.estimator.parameter_specs import PARAMETER_SPECS
+from infinihand_ros.ros.estimator.parameter_specs import ParameterSpec
 from rcl_interfaces.msg import FloatingPointRange
 from rcl_interfaces.msg import IntegerRange
 from rcl_interfaces.msg import ParameterDescriptor

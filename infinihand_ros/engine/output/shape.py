@@ -15,8 +15,8 @@ from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.hand_conventions import NUM_BETAS
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.hand_conventions import WRIST
+from infinihand_ros.engine.output.config import ShapeConfig
 from infinihand_ros.mano.base import HandModel
-from infinihand_ros.ros.estimator_config import ShapeConfig
 import numpy as np
 import torch
 

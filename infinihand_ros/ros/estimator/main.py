@@ -7,8 +7,8 @@ parameter or checkpoint stops it at start-up with one error line naming it, exit
 
 import sys
 
-from infinihand_ros.ros.estimator_config import NODE_NAME
-from infinihand_ros.ros.estimator_node import EstimatorNode
+from infinihand_ros.ros.estimator.config import NODE_NAME
+from infinihand_ros.ros.estimator.node import EstimatorNode
 from infinihand_ros.ros.node_process import run_node
 
 

@@ -23,7 +23,7 @@ from typing import Final
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.hand_conventions import WRIST
-from infinihand_ros.ros.estimator_config import IdentityConfig
+from infinihand_ros.engine.output.config import IdentityConfig
 import numpy as np
 
 #: Cost of giving a hand the side the model did not predict (half a track radius).

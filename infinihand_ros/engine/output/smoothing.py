@@ -9,8 +9,8 @@ from dataclasses import replace
 
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.hand_conventions import SIDES
-from infinihand_ros.ros.estimator_config import SmoothingConfig
-from infinihand_ros.ros.one_euro import OneEuroFilter
+from infinihand_ros.engine.output.config import SmoothingConfig
+from infinihand_ros.engine.output.one_euro import OneEuroFilter
 
 NS_PER_S = 1e9
 

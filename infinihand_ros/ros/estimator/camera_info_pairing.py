@@ -15,7 +15,7 @@ from infinihand_ros.bag.camera_msgs import camera_info_to_intrinsics
 from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.ros.estimator_config import FallbackIntrinsics
+from infinihand_ros.ros.estimator.config import FallbackIntrinsics
 
 #: Where a frame's intrinsics came from.
 FROM_CAMERA_INFO: Final = 'camera_info'

@@ -17,7 +17,7 @@ from typing import Any, Final
 
 from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.ros.dds_profile import use_package_dds_profile
-from infinihand_ros.ros.replay_cli import message_class
+from infinihand_ros.tools.replay import message_class
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.executors import SingleThreadedExecutor
