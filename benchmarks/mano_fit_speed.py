@@ -3,7 +3,7 @@
     python benchmarks/mano_fit_speed.py [--frames 100] [--tracks 2] [--json]
 
 Pins the process to one CPU core and one torch thread, draws hand tracks with known built-in
-hand parameters (``data/synthetic_tracks.py``), fits the built-in
+hand parameters (``synth/known_tracks.py``), fits the built-in
 hand to their exact joints with the settings of ``config/corpus.yaml`` and prints frames/s and
 the mean and maximum joint error in millimetres.
 """
@@ -16,8 +16,8 @@ from pathlib import Path
 from infinihand_ros.core.config import load_config
 from infinihand_ros.data.mano_fit import fit_mano
 from infinihand_ros.data.mano_fit import ManoFitConfig
-from infinihand_ros.data.synthetic_tracks import known_track
 from infinihand_ros.mano.builtin import BuiltinHandModel
+from infinihand_ros.synth.known_tracks import known_track
 import numpy as np
 import torch
 

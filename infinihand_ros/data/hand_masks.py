@@ -1,7 +1,7 @@
 """Per-hand masks and tight boxes rendered from hand annotations (paper Sec. 3.1).
 
 The built-in hand's surface is the synthetic generator's: capsules around the skeleton
-(``synth/capsules.py``) with the generator's joint radii, intersected with each pixel's ray and
+(``mano/capsules.py``) with the generator's joint radii, intersected with each pixel's ray and
 z-tested between the two hands, so corpus masks match the generator's wherever no scene object
 covers the hand. Real MANO meshes are filled triangle by triangle, far to near.
 """
@@ -11,9 +11,9 @@ from typing import Final
 import cv2
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import SIDES
-from infinihand_ros.synth import capsules as caps
-from infinihand_ros.synth.render import SUBPIXEL_BITS
-from infinihand_ros.synth.sequence import mask_box
+from infinihand_ros.core.raster import mask_box
+from infinihand_ros.core.raster import SUBPIXEL_BITS
+from infinihand_ros.mano import capsules as caps
 import numpy as np
 
 #: Near clipping plane of the generator's renderer (m).
@@ -36,7 +36,7 @@ def capsule_masks(joints_cam: np.ndarray, radii: np.ndarray, present: np.ndarray
 
     Args:
         joints_cam: (2, 21, 3) joints per side [left, right], camera frame, metres.
-        radii: (2, 21) joint radii per side (m), e.g. ``synth.hand_motion.joint_radii(betas)``.
+        radii: (2, 21) joint radii per side (m), e.g. ``mano.capsules.joint_radii(betas)``.
         present: (2,) bool, which sides to draw.
         K: (3, 3) intrinsics, pixels.
         width: image width (px).

@@ -23,7 +23,7 @@ from infinihand_ros.data.hand_masks import masks_to_boxes
 from infinihand_ros.data.mano_fit import fit_mano
 from infinihand_ros.data.mano_fit import ManoFitConfig
 from infinihand_ros.mano.base import HandModel
-from infinihand_ros.synth.hand_motion import joint_radii
+from infinihand_ros.mano.capsules import joint_radii
 import numpy as np
 import torch
 

@@ -15,6 +15,7 @@ from typing import Final
 
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_BETAS
+from infinihand_ros.mano.capsules import joint_radii
 from infinihand_ros.synth import gestures
 from infinihand_ros.synth.scene import Scene
 import numpy as np
@@ -41,8 +42,6 @@ REST_SIDE_M: Final = 0.25
 REST_DOWN_M: Final = 0.75
 #: Random roll and pitch of the palm around its nominal orientation (degrees, 1 sigma).
 ORIENTATION_JITTER_DEG: Final = 18.0
-#: Capsule radius (m) at the wrist, MCP, PIP, DIP and tip joints of the mean hand.
-JOINT_RADII_M: Final = (0.024, 0.011, 0.0095, 0.0085, 0.0075)
 #: Skin tones (RGB) to draw from; a per-sequence jitter is added.
 SKIN_TONES: Final = ((233, 192, 160), (224, 172, 136), (198, 134, 96), (161, 102, 70),
                      (120, 76, 52), (245, 210, 185))
@@ -176,16 +175,6 @@ def make_hand_track(rng: np.random.Generator, scene: Scene, side: int,
     return HandTrack(side=side, global_orient=orient,
                      hand_pose=gestures.gesture_hand_pose(gesture, side),
                      betas=betas, transl=positions, radii=radii, skin_rgb=skin_rgb)
-
-
-def joint_radii(betas: np.ndarray) -> np.ndarray:
-    """Capsule radius (21,) in metres of each joint (OpenPose order) of a hand of shape ``betas``.
-
-    ``JOINT_RADII_M`` (wrist, then MCP, PIP, DIP, tip of each finger) scaled with the hand's
-    overall size, ``exp(0.05 * beta_0)``.
-    """
-    size = float(np.exp(0.05 * np.asarray(betas, np.float64)[0]))
-    return np.array([JOINT_RADII_M[0]] + list(JOINT_RADII_M[1:]) * 5) * size
 
 
 def sample_hand_appearance(rng: np.random.Generator) -> tuple[np.ndarray, tuple[int, int, int]]:

@@ -21,15 +21,14 @@ import cv2
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
+from infinihand_ros.core.raster import SUBPIXEL_BITS
 from infinihand_ros.core.validation import as_array
-from infinihand_ros.synth import capsules as caps
+from infinihand_ros.mano import capsules as caps
 from infinihand_ros.synth.scene import Lighting
 from infinihand_ros.synth.scene import Scene
 import numpy as np
 from scipy.special import ndtri
 
-#: Fixed-point fraction bits of coordinates given to OpenCV drawing (polygons, blur line).
-SUBPIXEL_BITS: Final = 4
 #: Number of noise levels (one random byte per pixel and channel picks a Gaussian quantile).
 NOISE_LEVELS: Final = 256
 #: Owner of pixels that show no hand capsule.

@@ -19,6 +19,7 @@ from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.mano_frames import transform_mano_params
+from infinihand_ros.core.raster import mask_box
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.synth import camera_motion
 from infinihand_ros.synth import hand_motion
@@ -121,15 +122,6 @@ class SynthFrame:
     intrinsics: Intrinsics
     camera_pose: CameraPose
     hands: tuple[HandTruth, ...]
-
-
-def mask_box(mask: np.ndarray) -> np.ndarray:
-    """Tight box (x0, y0, x1, y1) of a boolean mask, exclusive ends; zeros for an empty mask."""
-    rows = np.flatnonzero(mask.any(axis=1))
-    cols = np.flatnonzero(mask.any(axis=0))
-    if rows.size == 0:
-        return np.zeros(4)
-    return np.array([cols[0], rows[0], cols[-1] + 1, rows[-1] + 1], dtype=np.float64)
 
 
 class SyntheticSequence:

@@ -1,7 +1,7 @@
 """Builders of tiny datasets in the public layouts, around known built-in hands.
 
 Each builder writes a few frames of one dataset's layout from a known camera-frame hand track
-(``data/synthetic_tracks.py``) so an adapter test can check the hand lands where it should.
+(``synth/known_tracks.py``) so an adapter test can check the hand lands where it should.
 """
 
 import dataclasses

@@ -6,7 +6,7 @@ from pathlib import Path
 from dataset_layouts import ho3d
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.data.corpus_cli import main
-from infinihand_ros.data.synthetic_tracks import known_track
+from infinihand_ros.synth.known_tracks import known_track
 import numpy as np
 import pytest
 

@@ -15,8 +15,8 @@ from infinihand_ros.data.cleaning import SequenceLabels
 from infinihand_ros.data.hand_masks import capsule_masks
 from infinihand_ros.data.hand_masks import masks_to_boxes
 from infinihand_ros.data.keypoint_source import SyntheticKeypointSource
-from infinihand_ros.data.synthetic_tracks import known_track
-from infinihand_ros.synth.hand_motion import joint_radii
+from infinihand_ros.mano.capsules import joint_radii
+from infinihand_ros.synth.known_tracks import known_track
 import numpy as np
 import pytest
 

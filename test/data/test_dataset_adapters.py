@@ -21,9 +21,9 @@ from infinihand_ros.data.adapters.egodex import iter_egodex
 from infinihand_ros.data.adapters.ho3d import iter_ho3d
 from infinihand_ros.data.corpus_builder import build_corpus
 from infinihand_ros.data.corpus_builder import BuildSettings
-from infinihand_ros.data.synthetic_tracks import known_track
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.mano.mano_layer import ManoHandModel
+from infinihand_ros.synth.known_tracks import known_track
 import numpy as np
 import pytest
 from safetensors.numpy import load_file

@@ -4,7 +4,7 @@ from infinihand_ros.core.errors import InputError
 from infinihand_ros.data.hand_masks import capsule_masks
 from infinihand_ros.data.hand_masks import masks_to_boxes
 from infinihand_ros.data.hand_masks import mesh_masks
-from infinihand_ros.synth.hand_motion import joint_radii
+from infinihand_ros.mano.capsules import joint_radii
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
 import numpy as np

@@ -16,7 +16,7 @@ from infinihand_ros.convert.video_writer import EpisodeVideoWriter
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.data.adapters.lerobot_bags import iter_lerobot
-from infinihand_ros.data.synthetic_tracks import known_track
+from infinihand_ros.synth.known_tracks import known_track
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq

@@ -3,8 +3,8 @@
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.data.mano_fit import fit_mano
 from infinihand_ros.data.mano_fit import ManoFitConfig
-from infinihand_ros.data.synthetic_tracks import known_track
 from infinihand_ros.mano.builtin import BuiltinHandModel
+from infinihand_ros.synth.known_tracks import known_track
 import numpy as np
 import pytest
 import torch

@@ -5,7 +5,7 @@ from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.synth import capsules as caps
+from infinihand_ros.mano import capsules as caps
 from infinihand_ros.synth.camera_motion import sample_intrinsics
 from infinihand_ros.synth.render import HandGeometry
 from infinihand_ros.synth.render import render_frame

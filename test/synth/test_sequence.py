@@ -6,7 +6,6 @@ from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.synth.render import HandGeometry
 from infinihand_ros.synth.render import render_frame
 from infinihand_ros.synth.render import RenderOptions
-from infinihand_ros.synth.sequence import mask_box
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
 import numpy as np
@@ -122,10 +121,3 @@ def test_one_hand_sequences_and_bad_settings() -> None:
         SynthConfig(fps=0.0)
     with pytest.raises(InputError, match='frames must be >= 1'):
         SyntheticSequence(SMALL, 1, 0)
-
-
-def test_mask_box_is_tight_with_exclusive_ends() -> None:
-    mask = np.zeros((10, 12), bool)
-    mask[2:5, 3:9] = True
-    np.testing.assert_array_equal(mask_box(mask), [3, 2, 9, 5])
-    np.testing.assert_array_equal(mask_box(np.zeros((4, 4), bool)), [0, 0, 0, 0])

@@ -1,9 +1,11 @@
-"""Capsule hands for the renderer: capsules around a skeleton and analytic ray-capsule hits.
+"""Capsule hands: capsules around a skeleton, their joint radii and analytic ray-capsule hits.
 
 A capsule is the set of points within ``radius`` of a segment (a cylinder with two hemispherical
 caps). A hand is its 20 bones plus a few capsules across the palm and the thumb web, so that it
 reads as a hand rather than a stick figure. Rays are those of pixels in the OpenCV optical camera
-frame, ``(x, y, 1)`` (not normalised), so a ray parameter is directly the z depth.
+frame, ``(x, y, 1)`` (not normalised), so a ray parameter is directly the z depth. The built-in
+hand's surface is this one: the synthetic renderer draws it and the annotation masks of
+``data/hand_masks.py`` are cut from it.
 """
 
 from dataclasses import dataclass
@@ -19,6 +21,8 @@ PALM_MCPS: Final = (5, 9, 13, 17)
 THUMB_WEB: Final = (1, 5)
 #: Below this squared sine (relative) between a ray and a capsule axis, the side is skipped.
 PARALLEL_EPS: Final = 1e-12
+#: Capsule radius (m) at the wrist, MCP, PIP, DIP and tip joints of the mean hand.
+JOINT_RADII_M: Final = (0.024, 0.011, 0.0095, 0.0085, 0.0075)
 
 
 @dataclass(frozen=True)
@@ -42,6 +46,16 @@ class CapsuleSet:
     start_caps: np.ndarray
     end_caps: np.ndarray
     sides: np.ndarray
+
+
+def joint_radii(betas: np.ndarray) -> np.ndarray:
+    """Capsule radius (21,) in metres of each joint (OpenPose order) of a hand of shape ``betas``.
+
+    ``JOINT_RADII_M`` (wrist, then MCP, PIP, DIP, tip of each finger) scaled with the hand's
+    overall size, ``exp(0.05 * beta_0)``.
+    """
+    size = float(np.exp(0.05 * np.asarray(betas, np.float64)[0]))
+    return np.array([JOINT_RADII_M[0]] + list(JOINT_RADII_M[1:]) * 5) * size
 
 
 def hand_capsules(joints: np.ndarray,

@@ -1,7 +1,7 @@
 """Hand tracks with known built-in-hand parameters, for checking fits and cleaning.
 
 A track moves smoothly between a few keyframes, each a gesture of the synthetic generator
-(``synth/gestures.py``), a random orientation and a position 0.3-0.6 m in front of the camera
+(``gestures.py``), a random orientation and a position 0.3-0.6 m in front of the camera
 (OpenCV optical frame). The joints come from the built-in hand, so the parameters are exact.
 """
 
