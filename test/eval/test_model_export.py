@@ -1,4 +1,4 @@
-"""Tests of model/io/export.py: half-precision storage, the mean pose, loading back."""
+"""Tests of eval/model_export.py: half-precision storage, the mean pose, loading back."""
 
 import json
 from pathlib import Path
@@ -7,18 +7,40 @@ from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import ModelSelection
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.eval.baselines import mean_articulation
+from infinihand_ros.eval.model_export import export_model
+from infinihand_ros.eval.model_export import main
+from infinihand_ros.model.config import AggregatorConfig
+from infinihand_ros.model.config import CameraHeadConfig
+from infinihand_ros.model.config import DptConfig
+from infinihand_ros.model.config import GeometryConfig
+from infinihand_ros.model.config import MemoryConfig
+from infinihand_ros.model.hand.config import load_hand_branch_config
+from infinihand_ros.model.infinihand_model import build_infinihand_model
 from infinihand_ros.model.infinihand_model import InfiniHandModel
 from infinihand_ros.model.io.bundled import MEAN_POSE_FILE
 from infinihand_ros.model.io.checkpoint import read_checkpoint
 from infinihand_ros.model.io.checkpoint import save_infinihand_checkpoint
-from infinihand_ros.model.io.export import export_model
-from infinihand_ros.model.io.export import main
 from infinihand_ros.synth.sample_sink import SampleSink
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
 import numpy as np
 import pytest
 import torch
+
+
+@pytest.fixture
+def model() -> InfiniHandModel:
+    """Return a seeded micro InfiniHand model: 4 x 5 patches, the tiny hand branch."""
+    aggregator = AggregatorConfig(image_height=56, image_width=70, embed_dim=64, depth=2,
+                                  num_heads=2, rope3d_split=(12, 10, 10),
+                                  selected_layers=(0, 1, 1, 1))
+    geometry = GeometryConfig(aggregator=aggregator,
+                              camera_head=CameraHeadConfig(trunk_depth=1, num_heads=2,
+                                                           num_iterations=2),
+                              dpt=DptConfig(features=16, out_channels=(16, 16, 32, 32),
+                                            head_features=8),
+                              memory=MemoryConfig(anchor_frames=1, window=2))
+    return build_infinihand_model(geometry, load_hand_branch_config('tiny'), seed=0).eval()
 
 
 @pytest.fixture(scope='module')

@@ -1,11 +1,12 @@
 """Export a trained checkpoint as a bundled model: half-precision storage plus the mean pose.
 
-``python -m infinihand_ros.model.io.export --checkpoint RUN/checkpoints/final/model --out
+``python -m infinihand_ros.eval.model_export --checkpoint RUN/checkpoints/final/model --out
 models/tiny_synthetic --train-sequences runs/synth_train`` reads a whole-model checkpoint,
 stores its floating-point tensors as float16 (loading casts them back to the model's float32;
 half the size, within float16's rounding of the weights), computes the training set's mean
 articulation (``eval.baselines.mean_articulation`` over every annotated hand of the training
-sequences) into ``mean_pose.json``, and writes the directory atomically.
+sequences) into ``mean_pose.json``, and writes the directory atomically. It sits above the
+model's checkpoint I/O because the mean pose needs the training reader and the baseline.
 """
 
 import argparse
@@ -58,7 +59,7 @@ def export_model(checkpoint: str | Path, out: str | Path, sequences: list[str],
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point; returns the exit code."""
-    parser = argparse.ArgumentParser(prog='python -m infinihand_ros.model.io.export',
+    parser = argparse.ArgumentParser(prog='python -m infinihand_ros.eval.model_export',
                                      description=__doc__.splitlines()[0])
     parser.add_argument('--checkpoint', required=True, help='whole-model checkpoint directory')
     parser.add_argument('--out', required=True, help='bundled model directory to write')
