@@ -1,10 +1,12 @@
 """Command line of training: ``train`` (console script) or ``python -m infinihand_ros.train``.
 
-``train --config CONFIG --output DIR [--resume CK] [--steps N] [--stop-after N] [--init CK]
-[--data DIR ...] [--no-progress]`` trains one stage (the config's ``stage``) into DIR. CONFIG
-is a YAML path or a shipped name (``tiny``, ``tiny_stage2``, ``paper``, ``paper_stage2``:
-``config/train_<name>.yaml``). ``--resume`` continues from a checkpoint or from an output
-directory's newest checkpoint, with that checkpoint's config unless ``--config`` is given.
+``train --config CONFIG --output DIR [--set KEY=VALUE ...] [--resume CK] [--steps N]
+[--stop-after N] [--init CK] [--data DIR ...] [--no-progress]`` trains one stage (the config's
+``stage``) into DIR. CONFIG is a YAML path or a shipped name (``tiny``, ``tiny_stage2``,
+``tiny_heads``, ``paper``, ``paper_stage2``: ``config/train_<name>.yaml``), possibly a
+``base`` file plus overrides; ``--set train.batch_size=16`` replaces one value of it (dotted
+key, YAML value). ``--resume`` continues from a checkpoint or from an output directory's
+newest checkpoint, with that checkpoint's config unless ``--config`` is given.
 Multi-GPU / multi-node: ``torchrun --nproc-per-node N -m infinihand_ros.train ...``.
 """
 
@@ -16,6 +18,7 @@ import sys
 
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.train.config_compose import parse_override
 from infinihand_ros.train.train_config import load_train_config
 from infinihand_ros.train.train_config import TrainConfig
 from infinihand_ros.train.train_state import CHECKPOINTS_DIR
@@ -32,7 +35,11 @@ def build_parser() -> argparse.ArgumentParser:
         prog='train', description='Train InfiniHand (Stage I or II, as the config says) on '
                                   'sequences in the training-sample form.')
     parser.add_argument('--config', help='training YAML file or shipped name (tiny, '
-                                         'tiny_stage2, paper, paper_stage2)')
+                                         'tiny_stage2, tiny_heads, paper, paper_stage2)')
+    parser.add_argument('--set', nargs='+', action='extend', default=[], metavar='KEY=VALUE',
+                        dest='overrides',
+                        help='override one value of the config: a dotted key and a YAML '
+                             'value, e.g. train.batch_size=16 losses.camera.weight=5.0')
     parser.add_argument('--output', type=Path,
                         help='output directory (log, curves, checkpoints); default: the '
                              "resumed run's")
@@ -59,7 +66,8 @@ def validate_args(args: argparse.Namespace) -> tuple[TrainConfig, Path]:
         raise InfiniHandError('give --config (a new run) or --resume (continue a run)')
     checkpoint = find_checkpoint(args.resume) if args.resume is not None else None
     source = args.config if args.config is not None else checkpoint / CONFIG_FILE
-    config = load_train_config(source)
+    overrides = dict(parse_override(text) for text in args.overrides)
+    config = load_train_config(source, overrides)
     for name in ('steps', 'stop_after'):
         value = getattr(args, name)
         if value is not None and value < 1:

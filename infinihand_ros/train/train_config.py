@@ -2,9 +2,11 @@
 
 A training file has two top-level sections: ``train`` (the ``TrainConfig`` fields below, nested
 sections included) and ``losses`` (the ``LossConfig`` of ``config/train_losses.yaml``, whose
-values are used when the file has no ``losses`` section). ``load_train_config`` reads both into
-one frozen ``TrainConfig``; ``train_config_to_yaml`` writes the resolved configuration back in
-the same form (every field), as saved beside each checkpoint.
+values are used when the file has no ``losses`` section), and may name a ``base`` file it
+overrides (``config_compose.py``). ``load_train_config`` composes the file, applies dotted
+overrides and reads both sections into one frozen ``TrainConfig``; ``train_config_to_yaml``
+writes the resolved configuration back in the same form (every field, no base), as saved
+beside each checkpoint.
 
 Stage I trains the camera-space heads on short clips (mask, 2D landmark and MANO losses);
 Stage II trains jointly on anchors + windows with every loss group of L_joint. Which
@@ -13,20 +15,24 @@ first group one of whose prefixes starts their name (prefix ``''`` matches all);
 ``frozen`` prefix do not train; a trainable name in no group is refused when the run starts.
 """
 
+from collections.abc import Mapping
 import dataclasses
 from dataclasses import dataclass
 from dataclasses import field
 from pathlib import Path
+from typing import Any
 from typing import Final
 
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import config_from_dict
 from infinihand_ros.core.config import config_to_dict
-from infinihand_ros.core.config import read_yaml
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.train.box_jitter import BoxJitter
+from infinihand_ros.train.config_compose import apply_overrides
+from infinihand_ros.train.config_compose import BASE_KEY
+from infinihand_ros.train.config_compose import read_composed
 from infinihand_ros.train.losses import load_loss_config
 from infinihand_ros.train.losses import LossConfig
 from infinihand_ros.train.losses import LOSSES_SECTION
@@ -299,6 +305,10 @@ class TrainConfig:
                               f'a clip); use stage: {STAGE_2} or drop them')
 
 
+#: The dataclass of each top-level section of a training file (the roots of dotted overrides).
+SECTION_CONFIGS: Final = {TRAIN_SECTION: TrainConfig, LOSSES_SECTION: LossConfig}
+
+
 def _require_choice(where: str, value: str, choices: tuple[str, ...]) -> None:
     """Raise ConfigError unless ``value`` is one of ``choices``."""
     if value not in choices:
@@ -310,11 +320,14 @@ def named_train_config_path(name: str) -> Path:
     return config_dir() / f'train_{name}.yaml'
 
 
-def load_train_config(path: str | Path) -> TrainConfig:
-    """Load a training file: section ``train``, and ``losses`` (else train_losses.yaml's).
+def load_train_config(path: str | Path,
+                      overrides: Mapping[str, Any] | None = None) -> TrainConfig:
+    """Load a training file: its base chain, then ``overrides``, then ``train`` and ``losses``.
 
     Args:
         path: the YAML file, or a shipped name (``tiny``, ``paper``).
+        overrides: dotted keys and values set after composition (``{'train.steps': 500}``),
+            as ``train --set`` gives them.
 
     Raises:
         ConfigError: for a missing or unreadable file, a missing ``train`` section, an unknown
@@ -323,15 +336,25 @@ def load_train_config(path: str | Path) -> TrainConfig:
     """
     text = str(path)
     path = Path(text) if text.endswith(('.yaml', '.yml')) else named_train_config_path(text)
-    document = read_yaml(path)
-    if not isinstance(document, dict) or TRAIN_SECTION not in document:
+    document = read_composed(path)
+    if overrides:
+        document = apply_overrides(document, overrides, SECTION_CONFIGS)
+    if TRAIN_SECTION not in document:
         raise ConfigError(f'{path}: no top-level section {TRAIN_SECTION!r}')
+    unknown = sorted(set(document) - {TRAIN_SECTION, LOSSES_SECTION})
+    if unknown:
+        raise ConfigError(f'{path}: unknown top-level key(s) {unknown}; valid keys are '
+                          f'{sorted((BASE_KEY, LOSSES_SECTION, TRAIN_SECTION))}')
     section = document[TRAIN_SECTION]
     if isinstance(section, dict) and LOSSES_SECTION in section:
         raise ConfigError(f'{path}:{TRAIN_SECTION}.{LOSSES_SECTION}: put the loss weights in a '
                           f'top-level {LOSSES_SECTION!r} section (as in {LOSSES_FILE})')
     config = config_from_dict(TrainConfig, section, f'{path}:{TRAIN_SECTION}')
-    losses = load_loss_config(path if LOSSES_SECTION in document else None)
+    if LOSSES_SECTION in document:
+        losses = config_from_dict(LossConfig, document[LOSSES_SECTION],
+                                  f'{path}:{LOSSES_SECTION}')
+    else:
+        losses = load_loss_config()
     return dataclasses.replace(config, losses=losses)
 
 

@@ -50,3 +50,17 @@ def test_run_resume_and_refusals(write_run_config: Callable[..., Path], tmp_path
     assert main(['--config', str(tmp_path / 'none.yaml'), '--output', output]) == 2
     error = capsys.readouterr().err
     assert error.startswith('error: ') and error.count('\n') == 1
+
+
+def test_set_overrides_the_config_and_names_a_bad_key(write_run_config: Callable[..., Path],
+                                                      tmp_path: Path) -> None:
+    """``--set`` replaces values of --config (before --steps / --data); errors name the key."""
+    config = str(write_run_config(steps=3))
+    resolved, _ = _validate('--config', config, '--output', str(tmp_path / 'o'), '--set',
+                            'train.seed=4', 'train.clip.clip_step=3', '--data', 'a',
+                            '--set', 'losses.camera.weight=2.5')
+    assert (resolved.seed, resolved.clip.clip_step, resolved.steps) == (4, 3, 3)
+    assert resolved.losses.camera.weight == 2.5 and resolved.data.sequences == ('a',)
+    with pytest.raises(InfiniHandError, match=r"train\.clip has no key 'stride'"):
+        _validate('--config', config, '--output', str(tmp_path / 'o'), '--set',
+                  'train.clip.stride=2')
