@@ -34,12 +34,6 @@ from infinihand_ros.convert.cli import main as bag_to_dataset
 from infinihand_ros.convert.config import ConvertConfig
 from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.estimates_bag import EstimatesBagWriter
-from infinihand_ros.convert.features import ACTION
-from infinihand_ros.convert.features import DEFAULT_FEATURES
-from infinihand_ros.convert.features import frame_values
-from infinihand_ros.convert.features import SOURCE_STAMP
-from infinihand_ros.convert.features import STATE
-from infinihand_ros.convert.features import TIMESTAMP
 from infinihand_ros.convert.frame_log import FrameLog
 from infinihand_ros.convert.run import engine_config_for
 from infinihand_ros.convert.source_frames import SourceFrame
@@ -47,6 +41,12 @@ from infinihand_ros.convert.stats import ImageStats
 from infinihand_ros.convert.topic_selection import select_image_topic
 from infinihand_ros.convert.video_writer import EpisodeVideoWriter
 from infinihand_ros.core.datatypes import FrameResult
+from infinihand_ros.data.lerobot_features import ACTION
+from infinihand_ros.data.lerobot_features import DEFAULT_FEATURES
+from infinihand_ros.data.lerobot_features import frame_values
+from infinihand_ros.data.lerobot_features import SOURCE_STAMP
+from infinihand_ros.data.lerobot_features import STATE
+from infinihand_ros.data.lerobot_features import TIMESTAMP
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 import numpy as np
 import pyarrow.parquet as pq

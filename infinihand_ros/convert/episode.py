@@ -19,14 +19,6 @@ import time
 
 from infinihand_ros.convert.config import ConvertConfig
 from infinihand_ros.convert.estimates_bag import EstimatesBagWriter
-from infinihand_ros.convert.features import ACTION
-from infinihand_ros.convert.features import FRAME_INDEX
-from infinihand_ros.convert.features import frame_values
-from infinihand_ros.convert.features import HAND_VALID
-from infinihand_ros.convert.features import RESULT_FEATURES
-from infinihand_ros.convert.features import SOURCE_STAMP
-from infinihand_ros.convert.features import STATE
-from infinihand_ros.convert.features import TIMESTAMP
 from infinihand_ros.convert.report import EpisodeReport
 from infinihand_ros.convert.resample import NS_PER_S
 from infinihand_ros.convert.resample import output_time_ns
@@ -39,6 +31,14 @@ from infinihand_ros.convert.video_writer import VideoInfo
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
+from infinihand_ros.data.lerobot_features import ACTION
+from infinihand_ros.data.lerobot_features import FRAME_INDEX
+from infinihand_ros.data.lerobot_features import frame_values
+from infinihand_ros.data.lerobot_features import HAND_VALID
+from infinihand_ros.data.lerobot_features import RESULT_FEATURES
+from infinihand_ros.data.lerobot_features import SOURCE_STAMP
+from infinihand_ros.data.lerobot_features import STATE
+from infinihand_ros.data.lerobot_features import TIMESTAMP
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 import numpy as np
 from rosbags.typesys.store import Typestore

@@ -9,12 +9,12 @@ from dataset_layouts import HEIGHT
 from dataset_layouts import K
 from dataset_layouts import random_poses
 from dataset_layouts import WIDTH
-from infinihand_ros.convert import features as feat
 from infinihand_ros.convert import lerobot_layout as layout
 from infinihand_ros.convert.config import VideoSettings
 from infinihand_ros.convert.video_writer import EpisodeVideoWriter
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.data import lerobot_features as feat
 from infinihand_ros.data.adapters.lerobot_bags import iter_lerobot
 from infinihand_ros.synth.known_tracks import known_track
 import numpy as np

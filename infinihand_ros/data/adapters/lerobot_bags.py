@@ -4,8 +4,8 @@ Layout (``convert/lerobot_layout.py``, LeRobot v0.4 ``datasets/utils.py``): ``me
 (fps, ``data_path`` / ``video_path`` templates, features), ``meta/episodes/chunk-*/file-*.parquet``
 (one row per episode: its data and video files and the video's ``from_timestamp``), data parquet
 files with one row per frame, and one mp4 per video file. Features are ours
-(``convert/features.py``): ``camera.T_world_cam`` (row-major 4x4, OpenCV optical camera, world =
-the episode's first anchor camera), ``camera.intrinsics`` (fx, fy, cx, cy),
+(``data/lerobot_features.py``): ``camera.T_world_cam`` (row-major 4x4, OpenCV optical camera,
+world = the episode's first anchor camera), ``camera.intrinsics`` (fx, fy, cx, cy),
 ``hands.valid`` and ``hands.keypoints_world`` (left then right, 21 OpenPose joints, metres).
 
 The hands are the estimator's own outputs, not ground truth: such sequences adapt a model to a
@@ -18,10 +18,10 @@ import json
 from pathlib import Path
 from typing import Final
 
-from infinihand_ros.convert import features as feat
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
+from infinihand_ros.data import lerobot_features as feat
 from infinihand_ros.data.adapters.frames import VideoFrames
 from infinihand_ros.data.corpus_sequence import CorpusSequence
 import numpy as np

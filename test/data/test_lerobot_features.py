@@ -1,6 +1,5 @@
-"""Tests of infinihand_ros/convert/features.py: names, state layout, invalid hands."""
+"""Tests of infinihand_ros/data/lerobot_features.py: names, state layout, invalid hands."""
 
-from infinihand_ros.convert import features
 from infinihand_ros.core import geometry
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import FrameResult
@@ -9,6 +8,7 @@ from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.wrist_frame import keypoints_in_wrist_frame
+from infinihand_ros.data import lerobot_features as features
 import numpy as np
 
 

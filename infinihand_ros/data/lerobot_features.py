@@ -1,4 +1,7 @@
-"""The dataset's features: names, dtypes and per-dimension names, and one frame's values.
+"""Our LeRobot datasets' features: names, dtypes and per-dimension names, and one frame's values.
+
+The converter (``convert``, ``bag_to_dataset``) writes them and ``data/adapters/lerobot_bags.py``
+reads them back, so they are defined here, below both.
 
 Every feature is a flat vector whose ``names`` give each dimension (so the joint order travels
 with the data). Per-hand features hold the left hand, then the right one. World-frame values use
