@@ -35,6 +35,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
 from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.bag.typestore import build_typestore
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.ros.dds_profile import use_package_dds_profile
 import numpy as np
 import rclpy
@@ -55,7 +56,6 @@ POSE_TOPIC = '/infinihand_estimator/camera_pose'
 REMAPS = ['-r', f'image/compressed:={IMAGE_TOPIC}', '-r', f'camera_info:={INFO_TOPIC}']
 READY = 'ready:'
 SETTLE_S = 3.0
-NS_PER_S = 1e9
 MS_PER_S = 1e3
 
 

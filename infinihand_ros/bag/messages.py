@@ -31,10 +31,10 @@ from infinihand_ros.core.hand_conventions import NUM_HAND_POSE_JOINTS
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.hand_conventions import WRIST
+from infinihand_ros.core.units import NS_PER_S
 import numpy as np
 from rosbags.typesys.store import Typestore
 
-NS_PER_S: Final = 1_000_000_000
 #: Range of builtin_interfaces/Time.sec (int32).
 STAMP_SEC_MIN: Final = -(2 ** 31)
 STAMP_SEC_MAX: Final = 2 ** 31 - 1

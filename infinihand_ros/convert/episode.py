@@ -20,7 +20,6 @@ import time
 from infinihand_ros.convert.config import ConvertConfig
 from infinihand_ros.convert.estimates_bag import EstimatesBagWriter
 from infinihand_ros.convert.report import EpisodeReport
-from infinihand_ros.convert.resample import NS_PER_S
 from infinihand_ros.convert.resample import output_time_ns
 from infinihand_ros.convert.resample import resample
 from infinihand_ros.convert.source_frames import SourceFrame
@@ -31,6 +30,7 @@ from infinihand_ros.convert.video_writer import VideoInfo
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.data.lerobot_features import ACTION
 from infinihand_ros.data.lerobot_features import FRAME_INDEX
 from infinihand_ros.data.lerobot_features import frame_values

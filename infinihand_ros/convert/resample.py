@@ -12,7 +12,8 @@ from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Generic, TypeVar
 
-NS_PER_S = 1_000_000_000
+from infinihand_ros.core.units import NS_PER_S
+
 ItemT = TypeVar('ItemT')
 
 

@@ -12,11 +12,11 @@ from dataclasses import dataclass
 
 from infinihand_ros.convert.frame_log import FrameLog
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.units import NS_PER_S
 import numpy as np
 
 DUPLICATE_STAMP = 'duplicate stamp (same as the previous frame)'
 BACKWARD_STAMP = 'stamp earlier than the previous frame (out of order)'
-NS_PER_S = 1_000_000_000
 
 
 @dataclass(frozen=True)

@@ -13,8 +13,8 @@ from infinihand_ros.convert.frame_log import FrameLog
 from infinihand_ros.convert.source_frames import SourceFrame
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.units import NS_PER_S
 
-NS_PER_S = 1_000_000_000
 NO_PTS = 'video frame without a presentation time'
 
 

@@ -31,6 +31,7 @@ from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.topics import COMPRESSED_IMAGE_TOPIC
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.eval.matching import box_from_projection
 from infinihand_ros.eval.runner import aggregate
 from infinihand_ros.eval.runner import Evaluation
@@ -47,7 +48,6 @@ ESTIMATOR_STATUS_SUFFIX: Final = ': estimator'
 #: Score given to a published hand (kept by the node; no presence score is published).
 PUBLISHED_SCORE: Final = 1.0
 NS_PER_MS: Final = 1e6
-NS_PER_S: Final = 1e9
 #: Metrics that need what the node does not publish, with the reason.
 MISSING_METRICS: Final = {
     'FAcc': 'no presence score and no mesh box are published',

@@ -18,7 +18,6 @@ from infinihand_ros.bag.messages import msg_to_hand
 from infinihand_ros.bag.messages import msg_to_keyframe_poses
 from infinihand_ros.bag.messages import msg_to_pose
 from infinihand_ros.bag.messages import ns_from_stamp
-from infinihand_ros.bag.messages import NS_PER_S
 from infinihand_ros.bag.messages import pose_to_msg
 from infinihand_ros.bag.messages import stamp_from_ns
 from infinihand_ros.bag.typestore import HAND_FRAME_MSG
@@ -33,6 +32,7 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.core.units import NS_PER_S
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader

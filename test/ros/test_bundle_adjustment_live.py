@@ -10,6 +10,7 @@ import signal
 import time
 
 from infinihand_ros.bag.reader import BagReader
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.tools.node_processes import fresh_domain_id
 from infinihand_ros.tools.node_processes import interrupt
 from infinihand_ros.tools.node_processes import ros_env
@@ -31,7 +32,6 @@ APPLIED = 'applied bundle-adjustment corrections'
 LOST = 'bundle-adjustment node lost'
 #: The estimator publishes at least every this many seconds while images come (5 Hz input).
 MAX_OUTPUT_GAP_S = 2.0
-NS_PER_S = 1e9
 
 
 @pytest.fixture(autouse=True)

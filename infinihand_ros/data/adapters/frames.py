@@ -14,12 +14,12 @@ import cv2
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.data.corpus_sequence import RgbLoader
 import numpy as np
 
 #: Point map from an OpenGL-style camera frame to the OpenCV optical frame (its own inverse).
 GL_TO_CV: Final = np.diag([1.0, -1.0, -1.0])
-NS_PER_S: Final = 1_000_000_000
 
 
 def empty_hands(frames: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
