@@ -28,6 +28,20 @@ from scipy import linalg
 from scipy.spatial.transform import Rotation
 
 
+@dataclass(frozen=True)
+class Corrections:
+    """One BA call's corrections.
+
+    Attributes:
+        times_ns: (K,) keyframe stamps.
+        corrections: (K, 4, 4) rigid corrections ``T_refined @ T_submitted^-1``.
+
+    """
+
+    times_ns: np.ndarray
+    corrections: np.ndarray
+
+
 def keyframe_corrections(T_refined: np.ndarray, T_raw: np.ndarray) -> np.ndarray:
     """Return corrections (K, 4, 4) ``T_refined @ T_raw^-1`` of camera-to-world poses (K, 4, 4)."""
     return np.asarray(T_refined, dtype=np.float64) @ np.linalg.inv(T_raw)

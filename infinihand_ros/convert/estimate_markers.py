@@ -18,13 +18,13 @@ from infinihand_ros.bag.typestore import POSE_MSG
 from infinihand_ros.bag.typestore import QUATERNION_MSG
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.hand_conventions import SIDES
+from infinihand_ros.core.output_fields import hand_output
 from infinihand_ros.vis.markers import hand_markers
 from infinihand_ros.vis.markers import LINE_LIST
 from infinihand_ros.vis.markers import LINE_STRIP
 from infinihand_ros.vis.markers import MarkerSpec
 from infinihand_ros.vis.markers import path_marker
 from infinihand_ros.vis.markers import SPHERE_LIST
-from infinihand_ros.vis.output_fields import hand_output
 import numpy as np
 from rosbags.typesys.store import Typestore
 

@@ -21,12 +21,14 @@ from infinihand_ros.core.config import read_yaml
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
+from infinihand_ros.engine.output.config import OutputConfig
 from infinihand_ros.engine.pose_track import PoseTrackConfig
 from infinihand_ros.mano.hand_model import HandModelConfig
 import torch
 
 ENGINE_SECTION: Final = 'engine'
 MODES: Final = ('per_frame', 'windowed')
+CAMERA_MOTIONS: Final = ('estimate', 'static')
 
 
 def check_device(name: str, key: str = 'engine.device') -> None:
@@ -138,6 +140,9 @@ class EngineConfig:
         pose_track: the pose track's memory and scale smoothing.
         bundle_adjustment: sparse BA settings (BA runs in the background and corrects the
             poses), or None for no BA.
+        camera_motion: 'estimate' (a moving camera) or 'static' (a fixed camera: its pose is
+            the world frame, hands are placed with the identity pose, no BA).
+        output: the output stage (hand identity, shared shape, smoothing).
 
     """
 
@@ -150,10 +155,15 @@ class EngineConfig:
     metric_scale: MetricScaleConfig = field(default_factory=MetricScaleConfig)
     pose_track: PoseTrackConfig = field(default_factory=PoseTrackConfig)
     bundle_adjustment: BAConfig | None = None
+    camera_motion: str = 'estimate'
+    output: OutputConfig = field(default_factory=OutputConfig)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ConfigError(f'engine.mode must be one of {list(MODES)}, got {self.mode!r}')
+        if self.camera_motion not in CAMERA_MOTIONS:
+            raise ConfigError(f'engine.camera_motion must be one of {list(CAMERA_MOTIONS)}, '
+                              f'got {self.camera_motion!r}')
         require_at_least('engine', 1, window=self.window,
                          keyframe_interval=self.keyframe_interval)
         check_device(self.device)

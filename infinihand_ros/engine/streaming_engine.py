@@ -3,8 +3,11 @@
 Data flows one way. Each frame is checked and fitted to the model (``frame_input``), then the
 paper's camera-space pass (``InfiniHandModel``: geometry through the streaming memory, poses,
 boxes from masks, hand branch) runs per block. Frame by frame, in order, the camera-space record
-then goes to the pose track (raw pose, metric scale from the hands, BA corrections), to bundle
-adjustment (keyframes), and its hands are placed in the world once, with the track's best pose.
+then goes to the pose track (raw pose, metric scale from the hands, BA corrections), to the
+bundle-adjustment backend (keyframes; ``engine/ba_backend.py``), its hands are placed in the
+world once, with the track's best pose (the identity with ``camera_motion: static``), and the
+output stage (``engine/output/``: identity, shared shape, smoothing) gives the result every
+consumer gets.
 
 The first ``anchor_frames`` frames are held back and processed together (the paper's anchor
 context), in both modes. After that, per-frame mode runs each frame as it arrives; windowed mode
@@ -27,13 +30,17 @@ import contextlib
 import dataclasses
 import threading
 
+from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import EngineStateError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
-from infinihand_ros.engine.ba_stage import BundleAdjustmentStage
+from infinihand_ros.engine.ba_backend import BABackend
+from infinihand_ros.engine.ba_backend import keyframe_input
+from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.camera_space import CameraSpaceFrame
 from infinihand_ros.engine.camera_space import PreparedFrame
 from infinihand_ros.engine.camera_space import split_frames
@@ -44,6 +51,7 @@ from infinihand_ros.engine.frame_input import check_intrinsics
 from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.model_builder import InfiniHandModel
+from infinihand_ros.engine.output.stage import OutputStage
 from infinihand_ros.engine.pose_track import PoseTrack
 from infinihand_ros.engine.pose_track import TrackedPose
 from infinihand_ros.engine.timestamps import check_timestamp
@@ -58,10 +66,31 @@ class StreamingEngine:
     """Frames in (RGB uint8, stamp, optional intrinsics), ``FrameResult``s out, in order."""
 
     def __init__(self, config: EngineConfig | None = None,
-                 model: InfiniHandModel | None = None) -> None:
-        """Build the engine (and its model, unless one is given) from ``config``."""
+                 model: InfiniHandModel | None = None,
+                 ba_backend: BABackend | None = None) -> None:
+        """Build the engine (and its model, unless one is given) from ``config``.
+
+        Args:
+            config: the engine config (``config/engine.yaml`` if None).
+            model: a built model to use instead of building one from ``config``.
+            ba_backend: where keyframes go for bundle adjustment; None: an ``InProcessBA``
+                when ``config.bundle_adjustment`` is set, else no BA. Not with
+                ``camera_motion: static`` (a fixed camera needs no BA).
+
+        Raises:
+            ConfigError: for a BA backend with ``camera_motion: static``.
+
+        """
         self.config = config or load_engine_config()
+        self.static = self.config.camera_motion == 'static'
+        if ba_backend is not None and self.static:
+            raise ConfigError('engine.camera_motion: static takes no bundle-adjustment backend '
+                              '(a fixed camera is the world frame)')
         self.model = model or build_model(self.config)
+        self._output = OutputStage(self.config.output, self.model.hand_branch.hand_models)
+        if ba_backend is None and self.config.bundle_adjustment is not None and not self.static:
+            ba_backend = InProcessBA(self.config.bundle_adjustment)
+        self._ba = ba_backend
         self._anchor_frames = self.model.geometry.config.memory.anchor_frames
         detection = self.config.detection
         self._detection = self.model.hand_detection(detection.presence_threshold,
@@ -88,7 +117,7 @@ class StreamingEngine:
         blend_s = (self.config.pose_track.correction_blend_s if ba is None
                    else ba.corrections.blend_s)
         self.pose_track = PoseTrack(self.config.pose_track, self.config.metric_scale, blend_s)
-        self._ba = None if ba is None else BundleAdjustmentStage(ba)
+        self._output.reset()
 
     @property
     def statistics(self) -> dict[str, object]:
@@ -166,12 +195,39 @@ class StreamingEngine:
                 self._ba.settle(self.pose_track, timeout_s)
             return [self._on_final_trajectory(result) for result in results]
 
+    def fold_in_ba(self) -> None:
+        """Fold finished bundle-adjustment results into the pose track now (between frames).
+
+        Each push does it before posing its frames; call this while no frame comes (a stream
+        that paused right after a keyframe gets its refinement, e.g. for a refreshed path).
+
+        Raises:
+            EngineStateError: after ``close()`` or when another thread is inside the engine.
+
+        """
+        with self._exclusive():
+            if self._ba is not None:
+                self._ba.fold_in(self.pose_track)
+
+    def best_pose(self, frame_index: int) -> CameraPose | None:
+        """Return a frame's current best camera pose (not blended), None once it left the track.
+
+        With ``camera_motion: static`` every frame's pose is the identity. Read-only; safe
+        between calls of the engine's caller.
+        """
+        if self.static:
+            return CameraPose.identity()
+        try:
+            return self.pose_track.best(frame_index, live=False).camera_pose
+        except KeyError:
+            return None
+
     def reset(self) -> None:
         """Start a new sequence: drop held-back frames, memories, the pose track and BA."""
         with self._exclusive():
             self._drain()
             if self._ba is not None:
-                self._ba.close()
+                self._ba.reset()
             self._start_sequence()
 
     def close(self) -> None:
@@ -301,14 +357,22 @@ class StreamingEngine:
         depth = None if record.depth_model is None else record.depth_model * track.scale
         if self._ba is not None:
             self._ba.fold_in(track)
-            self._ba.offer(record, track.scaled(frame.index), depth)
-        return FrameResult(
+            if frame.keyframe and depth is not None and frame.source_image is not None:
+                self._ba.offer(keyframe_input(frame.index, frame.timestamp_ns,
+                                              frame.source_image, depth,
+                                              track.scaled(frame.index), record.intrinsics,
+                                              record.hands))
+        return self._output.apply(FrameResult(
             timestamp_ns=frame.timestamp_ns, frame_index=frame.index,
             intrinsics=record.intrinsics, is_keyframe=frame.keyframe, depth=depth,
-            **self._posed(record.hands, track.best(frame.index)))
+            **self._posed(record.hands, track.best(frame.index))))
 
     def _on_final_trajectory(self, result: FrameResult) -> FrameResult:
-        """Return ``result`` with the track's current (not live) pose, scale and hands."""
+        """Return ``result`` with the track's current (not live) pose, scale and hands.
+
+        The output stage's identity and shared shape are kept; its smoothing (of the live
+        world-frame joints) is not, as the hands are placed again.
+        """
         try:
             best = self.pose_track.best(result.frame_index, live=False)
         except KeyError:  # no longer in the track
@@ -319,8 +383,9 @@ class StreamingEngine:
 
     def _posed(self, hands: tuple[HandState, ...], best: TrackedPose) -> dict[str, object]:
         """Return the ``FrameResult`` fields that follow from a tracked pose (hands placed)."""
-        return {'camera_pose': best.camera_pose,
-                'hands': place_in_world(hands, best.camera_pose), 'metric_scale': best.scale,
+        pose = CameraPose.identity() if self.static else best.camera_pose
+        return {'camera_pose': pose,
+                'hands': place_in_world(hands, pose), 'metric_scale': best.scale,
                 'raw_camera_pose': best.scaled_pose if self._ba is not None else None,
                 'pose_version': best.version}
 

@@ -16,12 +16,12 @@ from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import Quaternion
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.hand_conventions import JOINT_NAMES
+from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.ros.estimator.diagnostics import DiagnosticReport
 from infinihand_ros.vis.markers import LINE_LIST
 from infinihand_ros.vis.markers import LINE_STRIP
 from infinihand_ros.vis.markers import MarkerSpec
 from infinihand_ros.vis.markers import SPHERE_LIST
-from infinihand_ros.vis.output_fields import PoseFields
 from nav_msgs.msg import Path
 import numpy as np
 from sensor_msgs.msg import CameraInfo

@@ -10,7 +10,7 @@ from typing import Final
 
 from infinihand_ros.core.hand_conventions import JOINT_PARENTS
 from infinihand_ros.core.hand_conventions import side_name
-from infinihand_ros.vis.output_fields import HandOutput
+from infinihand_ros.core.output_fields import HandOutput
 import numpy as np
 
 LINE_LIST: Final = 'line_list'

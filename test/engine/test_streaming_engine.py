@@ -7,9 +7,11 @@ import time
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.config import PoolConfig
 from infinihand_ros.ba.config import WorkerConfig
+from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import EngineStateError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
+from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.frame_input import fit_image
@@ -144,6 +146,44 @@ def test_bundle_adjustment_keeps_the_raw_poses(model, frames: list) -> None:
         # No BA call yet (the pool has not triggered): the correction is the identity.
         np.testing.assert_allclose(b.raw_camera_pose.matrix(), a.camera_pose.matrix(), atol=1e-6)
         np.testing.assert_allclose(b.camera_pose.matrix(), a.camera_pose.matrix(), atol=1e-6)
+
+
+def test_static_camera_is_the_world_frame_and_places_hands_with_it(model,
+                                                                   frames: list) -> None:
+    """camera_motion static: identity pose on every frame, world joints = camera joints."""
+    with StreamingEngine(replace(CONFIG, camera_motion='static',
+                                 bundle_adjustment=BAConfig()), model) as engine:
+        results = _run(engine, frames[:4])
+        assert engine.statistics['ba'] is None  # a fixed camera runs no BA
+        np.testing.assert_array_equal(engine.best_pose(1).matrix(), np.eye(4))
+    for result in results:
+        np.testing.assert_array_equal(result.camera_pose.matrix(), np.eye(4))
+        assert result.raw_camera_pose is None
+        for hand in result.hands:
+            np.testing.assert_allclose(hand.joints_world, hand.joints_cam, atol=1e-12)
+    with pytest.raises(ConfigError, match='camera_motion'):
+        StreamingEngine(replace(CONFIG, camera_motion='static'), model, ba_backend=RemoteBA())
+
+
+def test_a_remote_backend_gets_each_keyframe_once_with_its_scaled_pose(model,
+                                                                       frames: list) -> None:
+    """The engine offers every keyframe (source image, metric depth, scaled raw pose)."""
+    remote = RemoteBA()
+    with StreamingEngine(CONFIG, model, ba_backend=remote) as engine:
+        results = _run(engine, frames)
+        offered = remote.take_keyframes()
+        poses = {r.frame_index: engine.pose_track.scaled(r.frame_index).matrix()
+                 for r in results}
+        final_scale = engine.pose_track.scale
+    keyframes = [result for result in results if result.is_keyframe]
+    assert [k.frame_id for k in offered] == [r.frame_index for r in keyframes]
+    for keyframe, result, frame in zip(offered, keyframes, frames):
+        np.testing.assert_array_equal(keyframe.image, frames[result.frame_index].rgb)
+        np.testing.assert_array_equal(keyframe.depth, result.depth)
+        expected = poses[result.frame_index]  # at the final scale; offered at the frame's
+        expected[:3, 3] *= result.metric_scale / final_scale
+        np.testing.assert_allclose(keyframe.T_world_cam, expected, atol=1e-12)
+    assert all(result.raw_camera_pose is not None for result in results)
 
 
 def test_engine_results_equal_a_direct_model_call(model, frames: list) -> None:

@@ -30,7 +30,5 @@ def test_only_results_of_sent_keyframes_are_accepted() -> None:
     assert link.accepts(np.array([20, 40]))
     assert not link.accepts(np.array([10, 20]))  # 10 was forgotten
     assert not link.accepts(np.array([99]))
-    link.applied()
     statistics = link.statistics(0.0)
     assert statistics['results_refused'] == 2 and statistics['keyframes_sent'] == 4
-    assert statistics['folded_in'] == 1

@@ -1,12 +1,12 @@
-"""The BA node's pool, worker and sequences without ROS (ros/bundle_adjustment/session.py)."""
+"""The BA node's pool, worker and sequences without ROS (ba/session.py)."""
 
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.config import PoolConfig
 from infinihand_ros.ba.keyframe import BAOutput
 from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.ba.session import BundleAdjustmentSession
 from infinihand_ros.ba.worker import BAWorkerError
 from infinihand_ros.core.datatypes import Intrinsics
-from infinihand_ros.ros.bundle_adjustment.session import BundleAdjustmentSession
 import numpy as np
 
 SMALL = Intrinsics(4.0, 4.0, 2.0, 2.0, 4, 4)

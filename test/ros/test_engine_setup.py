@@ -4,23 +4,40 @@ from pathlib import Path
 
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.output.config import SmoothingConfig
+from infinihand_ros.ros.estimator.config import CameraSettings
 from infinihand_ros.ros.estimator.config import EngineSelection
+from infinihand_ros.ros.estimator.config import EstimatorConfig
 from infinihand_ros.ros.estimator.engine_setup import engine_config_for
 import pytest
 
 
+def _node(**selection: object) -> EstimatorConfig:
+    """Return the node's default config with these ``engine.*`` parameters."""
+    return EstimatorConfig(engine=EngineSelection(**selection))
+
+
 def test_defaults_are_the_engine_file_with_the_node_settings() -> None:
     """Defaults give config/engine.yaml; mode, interval and BA follow the parameters."""
-    assert engine_config_for(EngineSelection()) == load_engine_config()
-    config = engine_config_for(EngineSelection(mode='windowed', keyframe_interval=3,
-                                               bundle_adjustment='in_process'))
+    assert engine_config_for(_node()) == load_engine_config()
+    config = engine_config_for(_node(mode='windowed', keyframe_interval=3,
+                                     bundle_adjustment='in_process'))
     assert (config.mode, config.keyframe_interval) == ('windowed', 3)
     assert config.bundle_adjustment is not None
 
 
+def test_camera_motion_and_output_parameters_reach_the_engine() -> None:
+    """camera.motion is the engine's camera_motion; smoothing.* its output stage's."""
+    smoothing = SmoothingConfig(mode='one_euro', beta=0.5)
+    config = engine_config_for(EstimatorConfig(camera=CameraSettings(motion='static'),
+                                               smoothing=smoothing))
+    assert config.camera_motion == 'static'
+    assert config.output.smoothing == smoothing
+
+
 def test_checkpoint_parameter_replaces_the_model_weights(tmp_path: Path) -> None:
     """An existing checkpoint directory becomes engine.model.checkpoint."""
-    config = engine_config_for(EngineSelection(checkpoint=str(tmp_path)))
+    config = engine_config_for(_node(checkpoint=str(tmp_path)))
     assert config.model.checkpoint == str(tmp_path)
 
 
@@ -33,10 +50,10 @@ def test_checkpoint_parameter_replaces_the_model_weights(tmp_path: Path) -> None
 def test_bad_engine_parameters_are_named(selection: EngineSelection, match: str) -> None:
     """Missing paths and unusable devices raise ConfigError naming the parameter."""
     with pytest.raises(ConfigError, match=match):
-        engine_config_for(selection)
+        engine_config_for(EstimatorConfig(engine=selection))
 
 
 def test_node_bundle_adjustment_runs_no_ba_in_the_engine() -> None:
     """With the BA node the engine's own BA worker stays off."""
-    config = engine_config_for(EngineSelection(bundle_adjustment='node'))
+    config = engine_config_for(_node(bundle_adjustment='node'))
     assert config.bundle_adjustment is None

@@ -2,7 +2,7 @@
 
 Separate processes (estimator, record, replay) on a private DDS domain with localhost discovery.
 The recorded outputs are checked against the bag's stamps and against the offline engine run
-(through the same pipeline rules) on exactly the frames the node processed.
+(the node's engine config, output stage included) on exactly the frames the node processed.
 """
 
 import json
@@ -16,11 +16,11 @@ from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.bag.reader import BagReader
 from infinihand_ros.core.hand_conventions import JOINT_NAMES
 from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.core.output_fields import hand_output
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.ros.estimator.config import estimator_config_from_parameters
 from infinihand_ros.ros.estimator.config import load_estimator_defaults
 from infinihand_ros.ros.estimator.engine_setup import engine_config_for
-from infinihand_ros.ros.estimator.pipeline import EstimatorPipeline
 from infinihand_ros.tools.node_processes import fresh_domain_id
 from infinihand_ros.tools.node_processes import interrupt
 from infinihand_ros.tools.node_processes import ros_env
@@ -111,7 +111,7 @@ def _model_fov_stamps(recorded_infos: list) -> set[int]:
 
 
 def _offline(stamps: list[int], model_fov: set[int]) -> list:
-    """Run the node's pipeline offline on the bag frames with these stamps.
+    """Run the node's engine offline on the bag frames with these stamps.
 
     Frames in ``model_fov`` get no intrinsics (the model's field of view), as they did live.
     On one torch thread, as the node (``ros_env`` sets ``OMP_NUM_THREADS=1``): with another
@@ -124,13 +124,12 @@ def _offline(stamps: list[int], model_fov: set[int]) -> list:
     threads = torch.get_num_threads()
     torch.set_num_threads(1)
     try:
-        with StreamingEngine(engine_config_for(config.engine)) as engine:
-            pipeline = EstimatorPipeline(config, engine)
+        with StreamingEngine(engine_config_for(config)) as engine:
             for frame in read_camera_frames(SAMPLE_BAG):
                 if frame.timestamp_ns in wanted:
                     intrinsics = None if frame.timestamp_ns in model_fov else frame.intrinsics
-                    outputs += pipeline.process(frame.rgb, frame.timestamp_ns, intrinsics)
-            outputs += pipeline.flush()
+                    outputs += engine.push(frame.rgb, frame.timestamp_ns, intrinsics)
+            outputs += engine.flush()
     finally:
         torch.set_num_threads(threads)
     return outputs
@@ -187,14 +186,16 @@ def test_sample_bag_through_the_live_node(tmp_path: Path) -> None:
     assert int(values['intrinsics_from_camera_info']) == len(stamps) - len(model_fov)
     assert int(values['intrinsics_from_fallback']) == 0
     assert len(model_fov) <= len(stamps) // 2, 'most frames must pair with their CameraInfo'
-    offline = {out.stamp_ns: out for out in _offline(stamps, model_fov)}
+    offline = {out.timestamp_ns: out for out in _offline(stamps, model_fov)}
     assert sorted(offline) == stamps
     for msg, stamp in zip(poses, stamps):
         position = msg.pose.position
         np.testing.assert_allclose([position.x, position.y, position.z],
-                                   offline[stamp].camera_pose.position, atol=OFFLINE_TOLERANCE)
+                                   offline[stamp].camera_pose.translation,
+                                   atol=OFFLINE_TOLERANCE)
     for msg in recorded[f'{NODE}/hands/right/landmarks']:
-        hand = offline[ns_from_stamp(msg.header.stamp)].hands[RIGHT]
+        hand = offline[ns_from_stamp(msg.header.stamp)].hand(RIGHT)
+        hand = None if hand is None else hand_output(hand)
         assert len(msg.poses) == (0 if hand is None else 21)
         if hand is not None:
             got = np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses])

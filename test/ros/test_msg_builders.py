@@ -1,15 +1,15 @@
 """rclpy output messages from the plain output fields (ros/msg_builders.py)."""
 
 from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.core.output_fields import hand_output
+from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.ros.estimator.diagnostics import DiagnosticReport
 from infinihand_ros.vis.markers import hand_markers
-from infinihand_ros.vis.output_fields import hand_output
-from infinihand_ros.vis.output_fields import PoseFields
 import numpy as np
 import pytest
-from ros_builders import INTRINSICS
-from ros_builders import make_hand
-from ros_builders import PALM_JOINTS
+from result_builders import INTRINSICS
+from result_builders import make_hand
+from result_builders import PALM_JOINTS
 
 msg_builders = pytest.importorskip('infinihand_ros.ros.msg_builders',
                                    reason='rclpy messages are not importable')

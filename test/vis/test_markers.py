@@ -2,14 +2,14 @@
 
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.core.output_fields import HandOutput
+from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.vis.markers import BONES
 from infinihand_ros.vis.markers import hand_markers
 from infinihand_ros.vis.markers import LINE_LIST
 from infinihand_ros.vis.markers import path_marker
 from infinihand_ros.vis.markers import SIDE_COLOURS
 from infinihand_ros.vis.markers import SPHERE_LIST
-from infinihand_ros.vis.output_fields import HandOutput
-from infinihand_ros.vis.output_fields import PoseFields
 import numpy as np
 
 #: 21 distinct world joints: joint j at (3j, 3j + 1, 3j + 2), metres.

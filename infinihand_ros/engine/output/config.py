@@ -1,6 +1,7 @@
 """Settings of the engine's output stage: hand identity, one shape per side, smoothing."""
 
 from dataclasses import dataclass
+from dataclasses import field
 from typing import Final
 
 from infinihand_ros.core.config import require_at_least
@@ -53,3 +54,19 @@ class ShapeConfig:
             raise ConfigError(f'shape.min_confidence: must be in [0, 1], got '
                               f'{self.min_confidence}')
         require_at_least('shape', 1, min_samples=self.min_samples)
+
+
+@dataclass(frozen=True)
+class OutputConfig:
+    """The engine's output stage (``engine.output``), the same for every consumer.
+
+    Attributes:
+        identity: per-side hand identity over time.
+        shape: one hand shape (MANO betas) per side over time.
+        smoothing: One-Euro smoothing of the world-frame joints.
+
+    """
+
+    identity: IdentityConfig = field(default_factory=IdentityConfig)
+    shape: ShapeConfig = field(default_factory=ShapeConfig)
+    smoothing: SmoothingConfig = field(default_factory=SmoothingConfig)

@@ -11,13 +11,13 @@ stamp, holding the rigid correction ``D = T_refined @ T_submitted^-1``, and publ
 ``bundle_adjustment/status``.
 """
 
-from dataclasses import dataclass
 from typing import Any, Final
 
 from geometry_msgs.msg import Point
 from geometry_msgs.msg import Pose
 from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import Quaternion
+from infinihand_ros.ba.corrections import Corrections
 from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.bag.camera_msgs import camera_info_to_intrinsics
 from infinihand_ros.bag.camera_msgs import msg_to_image
@@ -135,20 +135,6 @@ def keyframe_from_msgs(parts: dict[str, Any], frame_id: int) -> KeyframeInput:
                          _matrix(parts[POSE].pose),
                          camera_info_to_intrinsics(parts[CAMERA_INFO]),
                          _single_channel(parts[HAND_MASK], 'mono8', np.uint8) > 0)
-
-
-@dataclass(frozen=True)
-class Corrections:
-    """One BA call's corrections.
-
-    Attributes:
-        times_ns: (K,) keyframe stamps.
-        corrections: (K, 4, 4) rigid corrections ``T_refined @ T_submitted^-1``.
-
-    """
-
-    times_ns: np.ndarray
-    corrections: np.ndarray
 
 
 def corrections_msg(stamp_ns: int, frame_id: str, corrections: Corrections) -> Path:

@@ -12,17 +12,19 @@ A status goes to ``/diagnostics`` and, as the estimator's heartbeat, to
 from typing import Any, Final
 
 from diagnostic_msgs.msg import DiagnosticArray
+from infinihand_ros.ba.corrections import Corrections
+from infinihand_ros.ba.session import BundleAdjustmentSession
 from infinihand_ros.ba.worker_statistics import WorkerState
 from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.bundle_adjustment.config import ba_node_config_from_parameters
 from infinihand_ros.ros.bundle_adjustment.config import BA_NODE_NAME
 from infinihand_ros.ros.bundle_adjustment.config import BA_NODE_PARAMETER_SPECS
 from infinihand_ros.ros.bundle_adjustment.config import load_ba_node_defaults
 from infinihand_ros.ros.bundle_adjustment.keyframe_assembly import KeyframeAssembler
-from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import Corrections
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import corrections_msg
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import CORRECTIONS_TOPIC
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import keyframe_from_msgs
@@ -31,13 +33,11 @@ from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import KEYFRAME_PREFIX
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import LINK_QOS
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import STATE_KEY
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import STATUS_TOPIC
-from infinihand_ros.ros.bundle_adjustment.session import BundleAdjustmentSession
 from infinihand_ros.ros.estimator.diagnostics import DiagnosticReport
 from infinihand_ros.ros.estimator.node_statistics import OK
 from infinihand_ros.ros.estimator.node_statistics import WARN
 from infinihand_ros.ros.estimator.publishers import LATCHED_QOS
 from infinihand_ros.ros.parameters import declare_parameters
-from infinihand_ros.vis.output_fields import PoseFields
 from nav_msgs.msg import Path
 from rclpy.node import Node
 

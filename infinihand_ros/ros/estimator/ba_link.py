@@ -34,8 +34,7 @@ class BANodeLink:
         self._reported = WAITING
         self._sent: deque[int] = deque(maxlen=stamps_kept)
         self._sent_set: set[int] = set()
-        self.counts = {'keyframes_sent': 0, 'folded_in': 0, 'results_refused': 0,
-                       'outages': 0}
+        self.counts = {'keyframes_sent': 0, 'results_refused': 0, 'outages': 0}
 
     def heard(self, now_s: float, node_state: str) -> None:
         """Record a status from the BA node at ``now_s`` (its worker state)."""
@@ -75,16 +74,8 @@ class BANodeLink:
             self.counts['results_refused'] += int(not ok)
             return ok
 
-    def applied(self) -> None:
-        """Count a BA result applied to the pose track."""
-        with self._lock:
-            self.counts['folded_in'] += 1
-
     def statistics(self, now_s: float) -> dict[str, object]:
-        """Return the link for diagnostics: ``state``, the node's state and the counters.
-
-        ``folded_in`` (results applied) has the name the engine's BA statistics give it.
-        """
+        """Return the link for diagnostics: ``state``, the node's state and the counters."""
         with self._lock:
             return {'state': self._state(now_s), 'node_state': self._node_state,
                     **self.counts}

@@ -1,21 +1,21 @@
-"""The estimator's side of ``engine.bundle_adjustment: node``: keyframes out, corrections in.
+"""The estimator's transport for ``engine.bundle_adjustment: node``: messages <-> ``RemoteBA``.
 
-Keyframes are published (``keyframe_msgs``) only while the BA node subscribes to every part, so
-an absent node costs nothing. Corrections arrive in a callback and wait in a queue until the
-inference thread, between two frames, takes them into the pipeline (the engine serves one
-caller). The BA node's status messages are the heartbeat of a ``BANodeLink``; its state
-changes are logged once each and reported in diagnostics. Wall time (monotonic) measures the
-heartbeat, so a replay's ``/clock`` pausing cannot hide an outage.
+The engine offers keyframes to its ``RemoteBA`` backend; ``send_keyframes`` publishes them
+(``keyframe_msgs``) only while the BA node subscribes to every part, so an absent node costs
+nothing. Corrections arrive in a callback and go to the backend, which the engine folds into
+its pose track before the next frame (or when the node asks between frames). The BA node's
+status messages are the heartbeat of a ``BANodeLink``; its state changes are logged once each
+and reported in diagnostics. Wall time (monotonic) measures the heartbeat, so a replay's
+``/clock`` pausing cannot hide an outage.
 """
 
-import queue
 import time
 from typing import Final
 
 from diagnostic_msgs.msg import DiagnosticArray
 from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import Corrections
+from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import corrections_from_msg
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import CORRECTIONS_TOPIC
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import keyframe_msgs
@@ -36,14 +36,15 @@ LOG_PERIOD_S: Final = 5.0
 
 
 class BANodeClient:
-    """Keyframe publishers, the corrections queue and the link to the BA node."""
+    """Keyframe publishers, the corrections subscription and the link to the BA node."""
 
-    def __init__(self, node: Node, config: BANodeLinkConfig, world_frame_id: str) -> None:
+    def __init__(self, node: Node, config: BANodeLinkConfig, world_frame_id: str,
+                 remote: RemoteBA) -> None:
         """Create the keyframe publishers and subscribe to the BA node's outputs."""
         self._node = node
         self._world = world_frame_id
+        self.remote = remote
         self.link = BANodeLink(config.timeout_s, STAMPS_KEPT)
-        self._corrections: queue.SimpleQueue[Corrections] = queue.SimpleQueue()
         self._publishers = {part: node.create_publisher(msg_type, KEYFRAME_PREFIX + part,
                                                         LINK_QOS)
                             for part, msg_type in KEYFRAME_PARTS.items()}
@@ -60,12 +61,10 @@ class BANodeClient:
         self.link.sent(keyframe.timestamp_ns)
         return True
 
-    def take_corrections(self) -> list[Corrections]:
-        """Return the corrections received since the last call, oldest first."""
-        taken = []
-        while not self._corrections.empty():
-            taken.append(self._corrections.get_nowait())
-        return taken
+    def send_keyframes(self, camera_frame_id: str) -> None:
+        """Publish the keyframes the engine offered since the last call."""
+        for keyframe in self.remote.take_keyframes():
+            self.publish(keyframe, camera_frame_id)
 
     def check(self) -> None:
         """Log a change of the link's state (once per change)."""
@@ -77,8 +76,9 @@ class BANodeClient:
             self._node.get_logger().info(f'bundle-adjustment node {state}')
 
     def statistics(self) -> dict[str, object]:
-        """Return the link's figures for diagnostics."""
-        return self.link.statistics(time.monotonic())
+        """Return the link's figures and the results folded in, for diagnostics."""
+        return {**self.link.statistics(time.monotonic()),
+                'folded_in': self.remote.statistics()['folded_in']}
 
     def _on_corrections(self, msg: Path) -> None:
         """Queue a BA result for the keyframes this estimator sent; refuse others."""
@@ -93,7 +93,9 @@ class BANodeClient:
                 'ignoring BA corrections of keyframes this estimator did not send (an earlier '
                 'stream)', throttle_duration_sec=LOG_PERIOD_S)
             return
-        self._corrections.put(corrections)
+        self.remote.receive(corrections)
+        self._node.get_logger().info(f'received bundle-adjustment corrections of '
+                                     f'{len(corrections.times_ns)} keyframes')
 
     def _on_status(self, msg: DiagnosticArray) -> None:
         """Take a BA node status as its heartbeat."""

@@ -1,7 +1,9 @@
-"""The node's engine configuration: the engine YAML with the ``engine.*`` parameters applied.
+"""The node's engine configuration: the engine YAML with the node's parameters applied.
 
-The YAML is ``config/engine.yaml`` unless ``engine.config`` names another; errors name the
-parameter.
+The YAML is ``config/engine.yaml`` unless ``engine.config`` names another. The ``engine.*``
+parameters select the mode, device, checkpoint and BA; ``camera.motion`` is the engine's
+``camera_motion`` and ``identity.*``, ``shape.*`` and ``smoothing.*`` are its output stage
+(they replace the file's ``output`` section). Errors name the parameter.
 """
 
 from dataclasses import replace
@@ -12,21 +14,24 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.config import check_device
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
-from infinihand_ros.ros.estimator.config import EngineSelection
+from infinihand_ros.engine.output.config import OutputConfig
+from infinihand_ros.ros.estimator.config import EstimatorConfig
 
 
-def engine_config_for(selection: EngineSelection) -> EngineConfig:
-    """Return the engine config the node's ``engine.*`` parameters describe.
+def engine_config_for(config: EstimatorConfig) -> EngineConfig:
+    """Return the engine config the node's parameters describe.
 
     ``bundle_adjustment: in_process`` keeps the engine file's BA settings, or uses the
     package's ``config/ba.yaml`` when that file has none; ``none`` and ``node`` (BA in the
-    bundle_adjustment node, corrections applied by the node's pipeline) run no BA in the engine.
+    bundle_adjustment node, through the engine's ``RemoteBA`` backend that the node passes to
+    the engine) run no BA worker in the engine.
 
     Raises:
         ConfigError: naming the parameter (``engine.config``, ``engine.checkpoint``,
             ``engine.device``) or the engine file's key.
 
     """
+    selection = config.engine
     if selection.config and not Path(selection.config).expanduser().is_file():
         raise ConfigError(f'engine.config: {selection.config!r} is not a file; give an engine '
                           "YAML or '' for the package's config/engine.yaml")
@@ -42,5 +47,7 @@ def engine_config_for(selection: EngineSelection) -> EngineConfig:
     ba = None
     if selection.bundle_adjustment == 'in_process':
         ba = base.bundle_adjustment or load_ba_config()
+    output = OutputConfig(config.identity, config.shape, config.smoothing)
     return replace(base, mode=selection.mode, keyframe_interval=selection.keyframe_interval,
-                   device=selection.device, model=model, bundle_adjustment=ba)
+                   device=selection.device, model=model, bundle_adjustment=ba,
+                   camera_motion=config.camera.motion, output=output)

@@ -1,14 +1,15 @@
 """The ``infinihand_estimator`` node: camera stream in, camera pose and world-space hands out.
 
-A thin adapter: message -> ``image_decoding`` / ``camera_info_pairing`` -> ``EstimatorPipeline``
-(the streaming engine and the output rules) -> ``OutputPublishers``. The image callbacks only
-put the message into a one-frame mailbox (``LatestFrameSlot``); a dedicated inference thread
-takes the newest one, so frames arriving while the model is busy are dropped and counted and the
-latency never grows. A bad frame (encoding, size, truncated data, bad CameraInfo) is logged,
-throttled, counted and skipped. Inputs (relative, remappable): ``image``, ``image/compressed``,
-``camera_info``, with sensor-data QoS overridable by parameters. With
-``engine.bundle_adjustment: node`` keyframes go to the bundle-adjustment node and its
-corrections are applied between frames and while no frame comes (``BANodeClient``); without
+A thin adapter: message -> ``image_decoding`` / ``camera_info_pairing`` -> ``StreamingEngine``
+(estimation and the output stage every consumer shares) -> ``OutputPublishers``. The image
+callbacks only put the message into a one-frame mailbox (``LatestFrameSlot``); a dedicated
+inference thread takes the newest one, so frames arriving while the model is busy are dropped
+and counted and the latency never grows. A bad frame (encoding, size, truncated data, bad
+CameraInfo) is logged, throttled, counted and skipped. Inputs (relative, remappable):
+``image``, ``image/compressed``, ``camera_info``, with sensor-data QoS overridable by
+parameters. With ``engine.bundle_adjustment: node`` the engine's ``RemoteBA`` backend offers
+keyframes and takes corrections, and ``BANodeClient`` carries them to and from the bundle-
+adjustment node (corrections are folded in before each frame and while no frame comes); without
 that node the poses go on unrefined and diagnostics say so.
 """
 
@@ -22,6 +23,9 @@ from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.core import topics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
+from infinihand_ros.core.output_fields import PoseFields
+from infinihand_ros.engine.ba_remote import RemoteBA
+from infinihand_ros.engine.output.camera_path import CameraPath
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.estimator.ba_node_client import BANodeClient
@@ -34,7 +38,6 @@ from infinihand_ros.ros.estimator.image_decoding import decode_image
 from infinihand_ros.ros.estimator.latest_frame import LatestFrameSlot
 from infinihand_ros.ros.estimator.node_statistics import EstimatorStatistics
 from infinihand_ros.ros.estimator.node_statistics import StatisticsSnapshot
-from infinihand_ros.ros.estimator.pipeline import EstimatorPipeline
 from infinihand_ros.ros.estimator.publishers import OutputPublishers
 from infinihand_ros.ros.parameters import declare_estimator_parameters
 from rclpy.node import Node
@@ -65,8 +68,11 @@ class EstimatorNode(Node):
         """
         super().__init__(NODE_NAME, **node_kwargs)
         self.config = declare_estimator_parameters(self)
-        engine = StreamingEngine(engine_config_for(self.config.engine))
-        self.pipeline = EstimatorPipeline(self.config, engine)
+        engine_config = engine_config_for(self.config)
+        remote = (RemoteBA() if self.config.engine.bundle_adjustment == 'node'
+                  and engine_config.camera_motion != 'static' else None)
+        self.engine = engine = StreamingEngine(engine_config, ba_backend=remote)
+        self.path = CameraPath(self.config.outputs.path_length)
         self._engine_statistics: dict[str, object] = engine.statistics
         self.statistics = EstimatorStatistics(self.config.diagnostics.window_s)
         self._previous: StatisticsSnapshot | None = None
@@ -79,8 +85,8 @@ class EstimatorNode(Node):
         self.outputs = OutputPublishers(self, self.config.outputs,
                                         self.config.frames.world_frame_id)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
-        self._ba_node = (BANodeClient(self, self.config.ba_node, self.config.frames.world_frame_id)
-                         if self.config.engine.bundle_adjustment == 'node' else None)
+        self._ba_node = (None if remote is None else BANodeClient(
+            self, self.config.ba_node, self.config.frames.world_frame_id, remote))
         overrides = QoSOverridingOptions.with_default_policies()
         # rclpy writes a topic's QoS overrides into the profile it is given: one copy per topic.
         for msg_type, topic in ((Image, 'image'), (CompressedImage, 'image/compressed')):
@@ -103,7 +109,7 @@ class EstimatorNode(Node):
         """Stop the inference thread and close the engine (call before ``destroy_node``)."""
         self._slot.close()
         self._worker.join()
-        self.pipeline.close()
+        self.engine.close()
 
     def _now_ns(self) -> int:
         """Return the node clock's time, nanoseconds (ROS time; sim time when enabled)."""
@@ -141,7 +147,7 @@ class EstimatorNode(Node):
             item = self._slot.take(TAKE_TIMEOUT_S)
             try:
                 if item is None:  # no frame: corrections that came after the last one go in now
-                    self._apply_corrections()
+                    self._fold_in_corrections()
                 else:
                     self._process(*item)
             except RuntimeError:  # rclpy's RCLError: SIGINT invalidated the context mid-publish
@@ -155,11 +161,10 @@ class EstimatorNode(Node):
         self._arrivals[stamp_ns] = arrival_ns
         while len(self._arrivals) > ARRIVALS_KEPT:
             self._arrivals.popitem(last=False)
-        self._apply_corrections()
         try:
             rgb = decode_image(msg)
             choice = self._intrinsics_for(stamp_ns, rgb.shape[1], rgb.shape[0])
-            outputs = self.pipeline.process(rgb, stamp_ns, choice.intrinsics)
+            results = self.engine.push(rgb, stamp_ns, choice.intrinsics)
             self.statistics.intrinsics_used(choice.source)
         except InputError as exc:
             self._bad_frame(f'skipping the image stamped {stamp_ns}: {exc}')
@@ -169,29 +174,34 @@ class EstimatorNode(Node):
             self.get_logger().error(f'skipping the image stamped {stamp_ns}: {exc}',
                                     throttle_duration_sec=self.config.bad_frame_log_period_s)
             return
-        self._engine_statistics = self.pipeline.engine.statistics
+        self._engine_statistics = self.engine.statistics
         camera_frame = (self.config.frames.camera_frame_id or msg.header.frame_id
                         or topics.CAMERA_FRAME_ID)
-        for position, output in enumerate(outputs, start=1):
-            # The path holds every output of this push: publish it with the newest one only.
-            path = self.pipeline.path.poses() if position == len(outputs) else None
-            self.outputs.publish(output, camera_frame, path)
+        for result in results:
+            self.path.add(result.frame_index, result.timestamp_ns,
+                          PoseFields.from_camera_pose(result.camera_pose), result.pose_version,
+                          self._best_pose)
+        for position, result in enumerate(results, start=1):
+            # The path holds every result of this push: publish it with the newest one only.
+            path = self.path.poses() if position == len(results) else None
+            self.outputs.publish(result, camera_frame, path)
             now = self._now_ns()
-            arrival = self._arrivals.get(output.stamp_ns, now)
-            self.statistics.frame_published(now / NS_PER_S, (now - output.stamp_ns) / NS_PER_S,
+            stamp = result.timestamp_ns
+            arrival = self._arrivals.get(stamp, now)
+            self.statistics.frame_published(now / NS_PER_S, (now - stamp) / NS_PER_S,
                                             (now - arrival) / NS_PER_S)
-            if self._ba_node is not None and output.keyframe is not None:
-                self._ba_node.publish(output.keyframe, camera_frame)
+        if self._ba_node is not None:
+            self._ba_node.send_keyframes(camera_frame)
 
-    def _apply_corrections(self) -> None:
-        """Apply the BA node's corrections received since the last frame."""
-        if self._ba_node is None:
-            return
-        for corrections in self._ba_node.take_corrections():
-            self.pipeline.apply_corrections(corrections.times_ns, corrections.corrections)
-            self._ba_node.link.applied()
-            self.get_logger().info(f'applied bundle-adjustment corrections of '
-                                   f'{len(corrections.times_ns)} keyframes')
+    def _fold_in_corrections(self) -> None:
+        """Fold the BA node's corrections received since the last frame into the engine."""
+        if self._ba_node is not None:
+            self.engine.fold_in_ba()
+
+    def _best_pose(self, frame_index: int) -> PoseFields | None:
+        """Return the engine's current best pose of a frame, None once it left the track."""
+        pose = self.engine.best_pose(frame_index)
+        return None if pose is None else PoseFields.from_camera_pose(pose)
 
     def _intrinsics_for(self, stamp_ns: int, width: int, height: int) -> IntrinsicsChoice:
         """Pair an image with its CameraInfo, waiting a little for one that comes just after.

@@ -1,22 +1,26 @@
-"""The estimator's publishers and how one ``FrameOutput`` is published on them.
+"""The estimator's publishers and how one engine result is published on them.
 
 Every header stamp is the source image's stamp. World-frame outputs carry
 ``frames.world_frame_id``; ``~/camera_info`` the camera's optical frame id; the wrist-frame
 landmarks the frame ``<world>/<side>_wrist`` they are expressed in (the wrist pose gives it).
-A hand that is not seen gets empty landmark arrays and DELETE markers, and no wrist pose.
+Per hand, the fields are ``core.output_fields.HandOutput``; a hand that is not seen (or
+whose wrist frame cannot be formed) gets empty landmark arrays and DELETE markers, and no wrist
+pose.
 """
 
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
+from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.hand_conventions import SIDES
+from infinihand_ros.core.output_fields import hand_output
+from infinihand_ros.core.output_fields import HandOutput
+from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.estimator.config import OutputSwitches
-from infinihand_ros.ros.estimator.frame_outputs import FrameOutput
 from infinihand_ros.vis.markers import hand_markers
 from infinihand_ros.vis.markers import MarkerSpec
 from infinihand_ros.vis.markers import path_marker
-from infinihand_ros.vis.output_fields import PoseFields
 from nav_msgs.msg import Path
 import numpy as np
 from rclpy.node import Node
@@ -60,41 +64,42 @@ class OutputPublishers:
         self.joint_names = create(String, '~/hands/joint_names', LATCHED_QOS)
         self.joint_names.publish(msg_builders.joint_names_msg())
 
-    def publish(self, output: FrameOutput, camera_frame_id: str,
+    def publish(self, result: FrameResult, camera_frame_id: str,
                 path: list[tuple[int, PoseFields]] | None) -> None:
         """Publish one frame's outputs.
 
         Args:
-            output: the frame's outputs.
+            result: the engine's result of the frame.
             camera_frame_id: frame id of ``~/camera_info``.
             path: the camera path's (stamp, pose) pairs up to this frame, to publish with it
                 (None: the path is not published with this frame).
 
         """
-        stamp, switches = output.stamp_ns, self.switches
+        stamp, switches = result.timestamp_ns, self.switches
+        hands = {side: None if result.hand(side) is None else hand_output(result.hand(side))
+                 for side in SIDES}
         if switches.camera_pose:
-            self.camera_pose.publish(msg_builders.pose_stamped_msg(stamp, self.world,
-                                                                   output.camera_pose))
+            self.camera_pose.publish(msg_builders.pose_stamped_msg(
+                stamp, self.world, PoseFields.from_camera_pose(result.camera_pose)))
         if switches.camera_path and path is not None:
             self.camera_path.publish(msg_builders.path_msg(stamp, self.world, path))
         if switches.camera_info:
             self.camera_info.publish(msg_builders.camera_info_msg(stamp, camera_frame_id,
-                                                                  output.intrinsics))
+                                                                  result.intrinsics))
         if switches.hands:
-            self._publish_hands(output)
+            self._publish_hands(stamp, hands)
         if switches.markers:
             specs: list[MarkerSpec] = []
             for side in SIDES:
-                specs += hand_markers(side, output.hands[side])
+                specs += hand_markers(side, hands[side])
             if path is not None:
                 specs.append(path_marker(np.array([pose.position for _, pose in path])))
             self.markers.publish(msg_builders.marker_array_msg(stamp, self.world, specs))
 
-    def _publish_hands(self, output: FrameOutput) -> None:
+    def _publish_hands(self, stamp: int, hands: dict[int, HandOutput | None]) -> None:
         """Publish each side's wrist pose and landmark arrays (empty when not seen)."""
-        stamp = output.stamp_ns
         for side in SIDES:
-            hand, publishers = output.hands[side], self.hands[side]
+            hand, publishers = hands[side], self.hands[side]
             if hand is not None:
                 publishers['wrist_pose'].publish(msg_builders.pose_stamped_msg(
                     stamp, self.world, hand.wrist_pose))

@@ -8,7 +8,7 @@ poses still known to the engine, so the whole published path follows the best tr
 from collections import OrderedDict
 from collections.abc import Callable
 
-from infinihand_ros.vis.output_fields import PoseFields
+from infinihand_ros.core.output_fields import PoseFields
 
 #: Looks up the current best pose of an engine frame index, None when no longer known.
 PoseLookup = Callable[[int], PoseFields | None]

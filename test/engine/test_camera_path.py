@@ -1,7 +1,7 @@
-"""The bounded, refreshable camera path (ros/estimator/camera_path.py)."""
+"""The bounded, refreshable camera path (engine/output/camera_path.py)."""
 
-from infinihand_ros.ros.estimator.camera_path import CameraPath
-from infinihand_ros.vis.output_fields import PoseFields
+from infinihand_ros.core.output_fields import PoseFields
+from infinihand_ros.engine.output.camera_path import CameraPath
 import numpy as np
 
 

@@ -7,8 +7,8 @@ from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.engine.output.config import SmoothingConfig
 from infinihand_ros.engine.output.smoothing import HandSmoother
 import numpy as np
-from ros_builders import make_hand
-from ros_builders import PALM_JOINTS
+from result_builders import make_hand
+from result_builders import PALM_JOINTS
 
 S = 1_000_000_000
 HALF = 1.0 / (2.0 * math.pi)  # alpha 0.5 at dt = 1 s

@@ -11,7 +11,7 @@ from infinihand_ros.engine.output.shape import reshape_hand
 from infinihand_ros.engine.output.shape import ShapeConsensus
 from infinihand_ros.mano.builtin import BuiltinHandModel
 import numpy as np
-from ros_builders import make_hand
+from result_builders import make_hand
 import torch
 
 

@@ -5,11 +5,11 @@ import time
 
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.config import PoolConfig
-from infinihand_ros.engine.ba_stage import BundleAdjustmentStage
-from infinihand_ros.engine.ba_stage import hand_mask_from_boxes
-from infinihand_ros.engine.camera_space import CameraSpaceFrame
-from infinihand_ros.engine.camera_space import PreparedFrame
-from infinihand_ros.engine.frame_input import letterbox
+from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.engine.ba_backend import hand_mask_from_boxes
+from infinihand_ros.engine.ba_backend import keyframe_input
+from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.pose_track import PoseTrack
 from infinihand_ros.engine.pose_track import PoseTrackConfig
@@ -19,7 +19,6 @@ from infinihand_ros.synth.sequence import SyntheticSequence
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
-import torch
 
 NUM_FRAMES = 60
 
@@ -36,14 +35,12 @@ def _drifted(truth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
     return raw
 
 
-def _record(frame, pose: np.ndarray) -> CameraSpaceFrame:
-    """Return the camera-space record of a synthetic frame with a given (drifted) pose."""
+def _keyframe(frame, pose: CameraPose) -> KeyframeInput:
+    """Return the BA input of a synthetic frame with a given (drifted, scaled) pose."""
     depth = np.where(np.isfinite(frame.depth), frame.depth, 0.0).astype(np.float32)
-    _, mapping = letterbox(frame.rgb, (frame.rgb.shape[1], frame.rgb.shape[0]))
-    prepared = PreparedFrame(frame.index, frame.timestamp_ns, torch.empty(0), mapping,
-                             frame.intrinsics, keyframe=True, source_image=frame.rgb)
     hands = tuple(truth_to_hand_state(h) for h in frame.hands if h.visible)
-    return CameraSpaceFrame(prepared, pose, frame.intrinsics, hands, np.zeros(0), depth)
+    return keyframe_input(frame.index, frame.timestamp_ns, frame.rgb, depth, pose,
+                          frame.intrinsics, hands)
 
 
 @dataclass(frozen=True)
@@ -53,7 +50,7 @@ class _BARun:
     frames: list
     truth: np.ndarray
     raw: np.ndarray
-    stage: BundleAdjustmentStage
+    stage: InProcessBA
     track: PoseTrack
 
 
@@ -64,14 +61,13 @@ def ba_run() -> _BARun:
     truth = np.stack([f.camera_pose.matrix() for f in frames])
     raw = _drifted(truth, np.random.default_rng(12345))
     config = BAConfig(pool=PoolConfig(trigger=16, stride=2))
-    stage = BundleAdjustmentStage(config)
+    stage = InProcessBA(config)
     track = PoseTrack(PoseTrackConfig(), MetricScaleConfig(), config.corrections.blend_s)
     for frame, pose in zip(frames, raw):
-        record = _record(frame, pose)
         track.add(frame.index, frame.timestamp_ns, pose)
         stage.fold_in(track)
-        stage.offer(record, track.scaled(frame.index), record.depth_model)
-        while stage.worker.pending():  # a stream slower than BA: no selection is dropped
+        stage.offer(_keyframe(frame, track.scaled(frame.index)))
+        while stage.ba.worker.pending():  # a stream slower than BA: no selection is dropped
             time.sleep(0.01)
     stage.close()
     stage.fold_in(track)
@@ -82,8 +78,8 @@ def ba_run() -> _BARun:
 def test_background_ba_results_reach_the_track_and_blend_in(ba_run: _BARun) -> None:
     """Every BA call is folded into the pose track; live frames blend the newest one in."""
     stage, track, raw, frames = ba_run.stage, ba_run.track, ba_run.raw, ba_run.frames
-    assert stage.calls_submitted >= 3 and stage.calls_done == stage.calls_submitted
-    assert stage.worker.dropped == 0 and stage.worker.failures == 0
+    assert stage.ba.calls_submitted >= 3 and stage.calls_done == stage.ba.calls_submitted
+    assert stage.ba.worker.dropped == 0 and stage.ba.worker.failures == 0
     assert track.version == stage.calls_done
     # Live frames blend the newest correction in over blend_s (0.3 s): 1 s later it is whole.
     late_index, late_stamp = NUM_FRAMES, frames[-1].timestamp_ns + 1_000_000_000

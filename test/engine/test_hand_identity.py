@@ -4,7 +4,7 @@ from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.engine.output.config import IdentityConfig
 from infinihand_ros.engine.output.identity import HandIdentityTracker
-from ros_builders import make_hand
+from result_builders import make_hand
 
 SIZE = (640, 480)  # diagonal 800 px: radius 0.25 -> 200 px
 MS = 1_000_000

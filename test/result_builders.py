@@ -1,4 +1,4 @@
-"""Builders of engine results and hands for the ROS-layer tests (hand-set values)."""
+"""Builders of engine results and hands for tests (hand-set values)."""
 
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import FrameResult

@@ -1,13 +1,12 @@
-"""The BA node's work without ROS: keyframes into the binary pool, selections to a BA worker.
+"""The bundle-adjustment node's sequences: keyframes that come as messages into ``KeyframeBA``.
 
-What the engine's in-process stage does (``engine/ba_stage.py``), for keyframes that come as
-messages: each keyframe enters the ``BinaryKeyframePool``; a triggered selection goes to a
-``BundleAdjustmentWorker`` (BA in its own process, ``submit_selection`` never waits). Each
-finished call becomes ``Corrections`` (``D = T_refined @ T_submitted^-1`` per keyframe) for the
-result callback, and the refined poses are kept (bounded, by stamp) for the refined path. A
-keyframe older than the last one, or newer by more than ``max_gap_ns``, starts a new sequence
-(a restarted estimator: another world frame): new pool, new worker, the old worker's results
-ignored. A worker that gave up (its BA process kept dying) is replaced the same way.
+Each keyframe enters ``KeyframeBA`` (the binary pool and its BA worker, as in the engine's
+in-process backend). Each finished call becomes ``Corrections`` (``D = T_refined @
+T_submitted^-1`` per keyframe) for the result callback, and the refined poses are kept
+(bounded, by stamp) for the refined path. A keyframe older than the last one, or newer by more
+than ``max_gap_ns``, starts a new sequence (a restarted estimator: another world frame): new
+pool, new worker, the old worker's results ignored. A worker that gave up (its BA process kept
+dying) is replaced the same way.
 """
 
 from collections import OrderedDict
@@ -16,13 +15,13 @@ import logging
 import threading
 
 from infinihand_ros.ba.config import BAConfig
+from infinihand_ros.ba.corrections import Corrections
 from infinihand_ros.ba.corrections import keyframe_corrections
 from infinihand_ros.ba.keyframe import BAOutput
 from infinihand_ros.ba.keyframe import KeyframeInput
-from infinihand_ros.ba.keyframe_pool import BinaryKeyframePool
+from infinihand_ros.ba.keyframe_ba import KeyframeBA
 from infinihand_ros.ba.worker import BAWorkerError
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
-from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import Corrections
 import numpy as np
 
 logger = logging.getLogger(__name__)
@@ -48,13 +47,12 @@ class BundleAdjustmentSession:
         self._refined: OrderedDict[int, np.ndarray] = OrderedDict()  # stamp -> (4, 4)
         self.keyframes = 0
         self.sequences = 0
-        self._worker: BundleAdjustmentWorker | None = None
         self._start()
 
     @property
     def worker(self) -> BundleAdjustmentWorker:
         """Return the current sequence's worker."""
-        return self._worker
+        return self._ba.worker
 
     def add(self, keyframe: KeyframeInput) -> bool:
         """Add a keyframe (its ``frame_id`` new to the session); return whether BA was started."""
@@ -65,17 +63,13 @@ class BundleAdjustmentSession:
             self._restart()
         self._last_stamp = stamp
         self.keyframes += 1
-        if self._pool.push(keyframe.frame_id, keyframe) is None:
-            return False
         try:
-            self._worker.submit_selection([entry.state for entry in self._pool.last_selection],
-                                          self._pool.frame_ids())
+            return self._ba.add(keyframe)
         except BAWorkerError as exc:
             logger.error('BA worker failed (%s); its selection is dropped and a new sequence '
                          'starts', exc)
             self._restart()
             return False
-        return True
 
     def refined_poses(self) -> list[tuple[int, np.ndarray]]:
         """Return (stamp, refined ``T_world_cam`` (4, 4)) of the sequence, oldest first."""
@@ -84,22 +78,21 @@ class BundleAdjustmentSession:
 
     def close(self, timeout_s: float | None) -> None:
         """Stop the worker (a running call gets ``timeout_s``; None waits for all)."""
-        self._worker.close(timeout_s)
+        self._ba.worker.close(timeout_s)
 
     def _start(self) -> None:
         """Start a sequence: empty pool, no refined poses, a new worker."""
         self.sequences += 1
         sequence = self.sequences
-        self._pool = BinaryKeyframePool(self.config.pool.trigger, self.config.pool.stride)
         self._last_stamp: int | None = None
         with self._lock:
             self._refined.clear()
-        self._worker = self._factory(self.config,
-                                     lambda output: self._finished(sequence, output))
+        worker = self._factory(self.config, lambda output: self._finished(sequence, output))
+        self._ba = KeyframeBA(self.config, worker)
 
     def _restart(self) -> None:
         """End the sequence at once (a running call is abandoned) and start a new one."""
-        self._worker.close(0.0)
+        self._ba.worker.close(0.0)
         self._start()
 
     def _finished(self, sequence: int, output: BAOutput) -> None:

@@ -1,16 +1,15 @@
-"""Engine results to output fields (ros/estimator/frame_outputs.py, vis/output_fields.py)."""
+"""Output fields of engine hands and poses (core/output_fields.py), worked out by hand."""
 
 from infinihand_ros.core import geometry
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.ros.estimator.frame_outputs import frame_output
-from infinihand_ros.vis.output_fields import hand_output
+from infinihand_ros.core.output_fields import hand_output
+from infinihand_ros.core.output_fields import PoseFields
 import numpy as np
-from ros_builders import make_hand
-from ros_builders import make_result
-from ros_builders import PALM_JOINTS
-from ros_builders import PALM_RIGHT_WRIST_ROTATION
+from result_builders import make_hand
+from result_builders import PALM_JOINTS
+from result_builders import PALM_RIGHT_WRIST_ROTATION
 
 
 def test_right_hand_wrist_frame_and_pose() -> None:
@@ -42,13 +41,11 @@ def test_degenerate_or_unplaced_hands_count_as_not_seen() -> None:
     assert hand_output(make_hand(RIGHT, joints_world=np.zeros((21, 3)))) is None
 
 
-def test_frame_output_keeps_stamp_pose_and_sides() -> None:
-    """Stamp, T_world_cam and per-side slots come from the result."""
+def test_pose_fields_of_a_camera_pose() -> None:
+    """T_world_cam's translation and its rotation as (x, y, z, w) with w >= 0."""
     pose = CameraPose(geometry.axis_angle_to_matrix(np.array([0.0, 0.0, np.pi / 2])),
                       np.array([0.5, 0.0, 1.0]))
-    out = frame_output(make_result(123, (make_hand(RIGHT),), index=7, pose=pose, version=3))
-    assert (out.stamp_ns, out.frame_index, out.pose_version) == (123, 7, 3)
-    np.testing.assert_allclose(out.camera_pose.position, [0.5, 0.0, 1.0])
-    np.testing.assert_allclose(out.camera_pose.orientation_xyzw,
-                               [0.0, 0.0, np.sqrt(0.5), np.sqrt(0.5)], atol=1e-12)
-    assert out.hands[LEFT] is None and out.hands[RIGHT].side == RIGHT
+    fields = PoseFields.from_camera_pose(pose)
+    np.testing.assert_allclose(fields.position, [0.5, 0.0, 1.0])
+    np.testing.assert_allclose(fields.orientation_xyzw, [0.0, 0.0, np.sqrt(0.5), np.sqrt(0.5)],
+                               atol=1e-12)

@@ -1,0 +1,74 @@
+"""Sparse bundle adjustment beside the stream, in this process's care (paper Sec. 3.3).
+
+Keyframes enter ``KeyframeBA`` (the binary keyframe pool and a ``BundleAdjustmentWorker``,
+which runs BA in its own process, so its thread settings, CPU priority and crashes stay there)
+and the stream goes on at once. Finished BA calls are handed to the pose track
+(``engine/pose_track.py``), which applies them as corrections; nothing here places hands or
+changes results. The track's correction history is pruned to what the pool and the track can
+still query, so memory and time stay bounded on an unbounded stream.
+"""
+
+from infinihand_ros.ba.config import BAConfig
+from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.ba.keyframe_ba import KeyframeBA
+from infinihand_ros.ba.worker import BundleAdjustmentWorker
+from infinihand_ros.engine.ba_backend import prune_corrections
+from infinihand_ros.engine.pose_track import PoseTrack
+
+
+class InProcessBA:
+    """The ``BABackend`` that runs BA in a background worker process of the engine's own."""
+
+    def __init__(self, config: BAConfig) -> None:
+        """Start the BA worker with an empty pool."""
+        self.config = config
+        self._start()
+
+    def _start(self) -> None:
+        """Start a new pool and worker."""
+        self.ba = KeyframeBA(self.config, BundleAdjustmentWorker(self.config))
+        self.calls_done = 0
+
+    def offer(self, keyframe: KeyframeInput) -> None:
+        """Feed a keyframe to the pool; a triggered selection goes to the worker (no wait)."""
+        self.ba.add(keyframe)
+
+    def fold_in(self, track: PoseTrack) -> None:
+        """Hand finished BA calls to ``track``; prune corrections nobody can query any more."""
+        for output in self.ba.worker.poll():
+            track.update_corrections(output.timestamps_ns, output.T_world_cam_refined,
+                                     output.T_world_cam_raw)
+            self.calls_done += 1
+        prune_corrections(track, self.ba.pooled_stamps())
+
+    def settle(self, track: PoseTrack, timeout_s: float | None = None) -> bool:
+        """Wait for every queued BA call, then hand the results to ``track``.
+
+        Returns:
+            True when BA finished everything it was given, False when ``timeout_s`` ran out.
+
+        """
+        idle = self.ba.worker.wait_idle(timeout_s)
+        self.fold_in(track)
+        return idle
+
+    def statistics(self) -> dict[str, object]:
+        """Return the BA worker's state, its counters and last error, and the results folded in.
+
+        ``state`` is 'idle', 'running', 'stopped' or 'failed' (the BA process kept dying;
+        the stream goes on with unrefined poses).
+        """
+        worker = self.ba.worker.statistics
+        return {'state': str(worker.state), 'submitted': worker.submitted, 'done': worker.done,
+                'dropped': worker.dropped, 'failed': worker.failed,
+                'callback_errors': worker.callback_errors, 'last_error': worker.last_error,
+                'folded_in': self.calls_done}
+
+    def reset(self) -> None:
+        """Stop the worker (finishing queued calls) and start an empty pool and a new one."""
+        self.ba.worker.close()
+        self._start()
+
+    def close(self) -> None:
+        """Finish queued BA calls and stop the worker."""
+        self.ba.worker.close()
