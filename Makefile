@@ -33,6 +33,8 @@ $(VENV_STAMP): requirements.txt requirements-nodeps.txt
 	cat requirements.txt requirements-nodeps.txt > $(VENV_STAMP)
 
 $(BUILD_STAMP): $(VENV_STAMP) setup.py setup.cfg package.xml $(wildcard config/* msg_schemas/msg/* data/*)
+	@# files removed from the source tree leave dangling links that stop colcon: drop them
+	@test ! -d build || find build -xtype l -delete
 	$(ENV) colcon build --base-paths . --symlink-install --event-handlers console_cohesion-
 	touch $(BUILD_STAMP)
 
