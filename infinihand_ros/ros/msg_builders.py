@@ -17,6 +17,7 @@ from geometry_msgs.msg import Quaternion
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.hand_conventions import JOINT_NAMES
 from infinihand_ros.core.output_fields import PoseFields
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.ros.estimator.diagnostics import DiagnosticReport
 from infinihand_ros.vis.markers import LINE_LIST
 from infinihand_ros.vis.markers import LINE_STRIP
@@ -31,7 +32,6 @@ from std_msgs.msg import String
 from visualization_msgs.msg import Marker
 from visualization_msgs.msg import MarkerArray
 
-NS_PER_S = 1_000_000_000
 JOINT_NAMES_SEPARATOR = ','
 _MARKER_TYPES = {LINE_LIST: Marker.LINE_LIST, SPHERE_LIST: Marker.SPHERE_LIST,
                  LINE_STRIP: Marker.LINE_STRIP}

@@ -24,6 +24,7 @@ from infinihand_ros.bag.reader import BagReader
 from infinihand_ros.core import topics
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.eval.cli import mean_pose_joints
 from infinihand_ros.eval.cli import save_outputs
@@ -47,7 +48,6 @@ EXIT_USAGE: Final = 2
 RECORDED_DIR: Final = 'recorded'
 EVAL_DIR: Final = 'eval'
 LOGS_DIR: Final = 'logs'
-NS_PER_S: Final = 1e9
 
 
 @dataclass(frozen=True)

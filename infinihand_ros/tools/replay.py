@@ -21,6 +21,7 @@ from typing import Any, Final
 
 from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.core.errors import BagError
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.ros.dds_profile import use_package_dds_profile
 import rclpy
 from rclpy.node import Node
@@ -32,7 +33,6 @@ from rosgraph_msgs.msg import Clock
 
 EXIT_OK: Final = 0
 EXIT_USAGE: Final = 2
-NS_PER_S: Final = 1e9
 REMAP_SEPARATOR: Final = ':='
 #: Replayed topics: reliable (reaches best-effort and reliable subscribers alike), a few deep.
 REPLAY_QOS: Final = QoSProfile(depth=10)
@@ -144,7 +144,7 @@ class Replayer:
                 due = start_wall + elapsed_s / self.options.rate
                 time.sleep(max(0.0, due - time.monotonic()))
             if self.clock is not None:
-                sec, nanosec = divmod(log_time, int(NS_PER_S))
+                sec, nanosec = divmod(log_time, NS_PER_S)
                 clock = Clock()
                 clock.clock.sec, clock.clock.nanosec = sec, nanosec
                 self.clock.publish(clock)

@@ -23,6 +23,7 @@ from typing import Final
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.hand_conventions import WRIST
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine.output.config import IdentityConfig
 import numpy as np
 
@@ -30,7 +31,6 @@ import numpy as np
 LABEL_PRIOR: Final = 0.5
 #: Cost of starting a new track.
 NEW_TRACK_COST: Final = 1.0
-NS_PER_S: Final = 1e9
 
 
 @dataclass(frozen=True)

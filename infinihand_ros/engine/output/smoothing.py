@@ -9,10 +9,9 @@ from dataclasses import replace
 
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.hand_conventions import SIDES
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine.output.config import SmoothingConfig
 from infinihand_ros.engine.output.one_euro import OneEuroFilter
-
-NS_PER_S = 1e9
 
 
 class HandSmoother:

@@ -19,6 +19,7 @@ from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.output_fields import PoseFields
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.bundle_adjustment.config import ba_node_config_from_parameters
 from infinihand_ros.ros.bundle_adjustment.config import BA_NODE_NAME
@@ -41,7 +42,6 @@ from infinihand_ros.ros.parameters import declare_parameters
 from nav_msgs.msg import Path
 from rclpy.node import Node
 
-NS_PER_S: Final = 1_000_000_000
 DIAGNOSTICS_TOPIC: Final = '/diagnostics'
 LOG_PERIOD_S: Final = 5.0
 

@@ -24,6 +24,7 @@ from infinihand_ros.core import topics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.core.output_fields import PoseFields
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.engine.output.camera_path import CameraPath
 from infinihand_ros.engine.streaming_engine import StreamingEngine
@@ -47,7 +48,6 @@ from sensor_msgs.msg import CameraInfo
 from sensor_msgs.msg import CompressedImage
 from sensor_msgs.msg import Image
 
-NS_PER_S: Final = 1e9
 #: How often the inference thread checks for shutdown while no frame comes, s.
 TAKE_TIMEOUT_S: Final = 0.2
 DIAGNOSTICS_TOPIC: Final = '/diagnostics'
