@@ -1,12 +1,18 @@
 """Tests of train/box_jitter.py: the ground-truth box perturbation of a training step."""
 
+from pathlib import Path
+
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.train.box_jitter import BoxJitter
 from infinihand_ros.train.box_jitter import jitter_boxes
+from infinihand_ros.train.recipe import load_recipe
 from infinihand_ros.train.train_config import load_train_config
 from infinihand_ros.train.train_config import named_train_config_path
+from infinihand_ros.train.train_config import TrainConfig
 import pytest
 import torch
+
+RECIPE = Path(__file__).parents[2] / 'models' / 'tiny_synthetic' / 'recipe.yaml'
 
 
 def _boxes(count: int) -> torch.Tensor:
@@ -47,10 +53,15 @@ def test_out_of_range_jitter_is_a_config_error(scale: float, shift: float) -> No
         BoxJitter(scale=scale, shift=shift)
 
 
-def test_the_shipped_motion_config_jitters_its_boxes() -> None:
-    """The motion and heads rounds jitter boxes; the camera phase (no hand loss) does not."""
-    motion = load_train_config(named_train_config_path('tiny_stage2_motion'))
+def test_the_shipped_settings_jitter_their_boxes() -> None:
+    """The motion and heads settings jitter boxes; the camera phase (no hand loss) does not."""
+    recipe = load_recipe(RECIPE)
+
+    def setting(name: str) -> TrainConfig:
+        return load_train_config(recipe.setting(name).config, recipe.setting(name).overrides)
+
+    motion = setting('motion')
     assert motion.box_jitter.enabled and motion.peak_region_boxes
-    heads = load_train_config(named_train_config_path('tiny_stage1_heads'))
+    heads = load_train_config(named_train_config_path('tiny_heads'))
     assert heads.box_jitter.enabled and 'geometry.aggregator' in heads.optim.frozen
-    assert not load_train_config(named_train_config_path('tiny_camera')).box_jitter.enabled
+    assert not setting('camera').box_jitter.enabled
