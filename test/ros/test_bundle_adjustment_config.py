@@ -4,18 +4,20 @@ from pathlib import Path
 
 from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.core.parameters import parameter_table
 from infinihand_ros.ros.bundle_adjustment.config import ba_node_config_from_parameters
-from infinihand_ros.ros.bundle_adjustment.config import BA_NODE_PARAMETER_SPECS
 from infinihand_ros.ros.bundle_adjustment.config import BundleAdjustmentNodeConfig
-from infinihand_ros.ros.bundle_adjustment.config import load_ba_node_defaults
 import pytest
 
 
-def test_defaults_file_matches_the_specs_and_the_dataclass() -> None:
-    """config/bundle_adjustment.yaml gives every spec'd parameter, the dataclass defaults."""
-    defaults = load_ba_node_defaults()
-    assert set(defaults) == set(BA_NODE_PARAMETER_SPECS)
-    config = ba_node_config_from_parameters(defaults)
+def _defaults() -> dict[str, object]:
+    return {name: default
+            for name, (default, _) in parameter_table(BundleAdjustmentNodeConfig).items()}
+
+
+def test_the_parameter_defaults_build_the_default_config() -> None:
+    """The tree's parameter defaults (the shipped file's) give the dataclass defaults."""
+    config = ba_node_config_from_parameters(_defaults())
     assert config == BundleAdjustmentNodeConfig()
     assert config.ba_config() == load_ba_config()
 
@@ -37,7 +39,7 @@ def test_a_partial_ba_file_keeps_the_other_defaults(tmp_path: Path) -> None:
 ])
 def test_bad_values_name_the_parameter(name: str, value: object, match: str) -> None:
     """A bad value raises ConfigError naming the parameter."""
-    values = load_ba_node_defaults()
+    values = _defaults()
     values[name] = value
     with pytest.raises(ConfigError, match=match):
         ba_node_config_from_parameters(values).ba_config()

@@ -1,50 +1,56 @@
-"""The estimator's parameter tree, defaults file and specs (ros/estimator/config.py)."""
+"""The estimator's parameter tree and its generated params file (ros/estimator/config.py)."""
 
-import dataclasses
 from pathlib import Path
 
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.core.parameters import parameter_table
+from infinihand_ros.core.parameters import unflatten
 from infinihand_ros.ros.estimator.config import estimator_config_from_parameters
 from infinihand_ros.ros.estimator.config import EstimatorConfig
-from infinihand_ros.ros.estimator.config import flatten
-from infinihand_ros.ros.estimator.config import load_estimator_defaults
-from infinihand_ros.ros.estimator.config import load_node_defaults
-from infinihand_ros.ros.estimator.config import unflatten
-from infinihand_ros.ros.estimator.parameter_specs import PARAMETER_SPECS
+from infinihand_ros.tools import params_files
 import pytest
+import yaml
+
+CONFIG_DIR = Path(__file__).resolve().parents[2] / 'config'
 
 
-def _field_names(cls: type, prefix: str = '') -> set[str]:
-    names = set()
-    for field in dataclasses.fields(cls):
-        if dataclasses.is_dataclass(field.default_factory if field.default_factory
-                                    is not dataclasses.MISSING else None):
-            names |= _field_names(field.default_factory, f'{prefix}{field.name}.')
-        else:
-            names.add(f'{prefix}{field.name}')
-    return names
+def _defaults() -> dict[str, object]:
+    return {name: default for name, (default, _) in parameter_table(EstimatorConfig).items()}
 
 
-def test_defaults_file_specs_and_dataclass_agree() -> None:
-    """config/estimator.yaml, PARAMETER_SPECS and EstimatorConfig name the same parameters."""
-    defaults = load_estimator_defaults()
-    assert set(defaults) == set(PARAMETER_SPECS) == _field_names(EstimatorConfig)
-    assert estimator_config_from_parameters(defaults) == EstimatorConfig()
+def test_shipped_params_files_are_generated_from_the_dataclasses() -> None:
+    """config/estimator.yaml and config/bundle_adjustment.yaml: exactly what the trees give."""
+    for name, text in params_files.expected_files().items():
+        assert (CONFIG_DIR / name).read_text() == text, (
+            f'config/{name} drifted from its dataclass; run python -m '
+            'infinihand_ros.tools.params_files --write')
+    assert params_files.main(['--config-dir', str(CONFIG_DIR)]) == 0
 
 
-def test_numeric_defaults_lie_in_their_ranges() -> None:
-    """Every numeric default is within its declared range."""
-    for name, value in load_estimator_defaults().items():
-        spec = PARAMETER_SPECS[name]
+def test_the_params_file_reads_back_to_the_defaults() -> None:
+    """The generated file, read as ROS reads it, builds the default config."""
+    data = yaml.safe_load((CONFIG_DIR / 'estimator.yaml').read_text())
+    assert data['/**']['ros__parameters'] == unflatten(_defaults())
+    assert estimator_config_from_parameters(_defaults()) == EstimatorConfig()
+
+
+def test_every_parameter_is_described_and_numbers_lie_in_their_ranges() -> None:
+    """Descriptions are sentences; numeric defaults within range; choices include the default."""
+    for name, (default, spec) in parameter_table(EstimatorConfig).items():
+        assert spec.description.endswith('.'), name
         if spec.low is not None:
-            assert spec.low <= value <= spec.high, name
+            assert spec.low <= default <= spec.high, name
+        if spec.choices:
+            assert default in spec.choices, name
+            assert all(choice in spec.full_description for choice in spec.choices), name
+    bundle_adjustment = parameter_table(EstimatorConfig)['engine.bundle_adjustment'][1]
+    assert 'off' not in bundle_adjustment.full_description
 
 
-def test_flatten_and_unflatten_are_inverse() -> None:
-    """Dotted names round-trip."""
-    tree = {'a': {'b': 1, 'c': {'d': 'x'}}, 'e': 2.0}
-    assert flatten(tree) == {'a.b': 1, 'a.c.d': 'x', 'e': 2.0}
-    assert unflatten(flatten(tree)) == tree
+def test_unflatten_nests_dotted_names() -> None:
+    """Dotted names become nested mappings."""
+    nested = {'a': {'b': 1, 'c': {'d': 'x'}}, 'e': 2.0}
+    assert unflatten({'a.b': 1, 'a.c.d': 'x', 'e': 2.0}) == nested
 
 
 @pytest.mark.parametrize('name,value,match', [
@@ -62,23 +68,7 @@ def test_flatten_and_unflatten_are_inverse() -> None:
 ])
 def test_bad_values_name_the_parameter(name: str, value: object, match: str) -> None:
     """A wrong value or type raises ConfigError naming the parameter."""
-    values = load_estimator_defaults()
+    values = _defaults()
     values[name] = value
     with pytest.raises(ConfigError, match=match):
         estimator_config_from_parameters(values)
-
-
-@pytest.mark.parametrize('key', ['my_node', '/my_node', '/**'])
-def test_params_file_section_by_name_or_wildcard(tmp_path: Path, key: str) -> None:
-    """The node's own section, its slash form or the /** wildcard give the values."""
-    path = tmp_path / 'params.yaml'
-    path.write_text(f"'{key}':\n  ros__parameters:\n    camera:\n      motion: static\n")
-    assert load_node_defaults(path, 'my_node') == {'camera.motion': 'static'}
-
-
-def test_params_file_without_the_node_section_is_refused(tmp_path: Path) -> None:
-    """Another node's section only: an error naming the file and the missing section."""
-    path = tmp_path / 'params.yaml'
-    path.write_text('other_node:\n  ros__parameters:\n    a: 1\n')
-    with pytest.raises(ConfigError, match=r'params.yaml: no my_node.ros__parameters'):
-        load_node_defaults(path, 'my_node')

@@ -18,8 +18,7 @@ from infinihand_ros.core.hand_conventions import JOINT_NAMES
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.output_fields import hand_output
 from infinihand_ros.engine.streaming_engine import StreamingEngine
-from infinihand_ros.ros.estimator.config import estimator_config_from_parameters
-from infinihand_ros.ros.estimator.config import load_estimator_defaults
+from infinihand_ros.ros.estimator.config import EstimatorConfig
 from infinihand_ros.ros.estimator.engine_setup import engine_config_for
 from infinihand_ros.tools.node_processes import fresh_domain_id
 from infinihand_ros.tools.node_processes import interrupt
@@ -118,7 +117,7 @@ def _offline(stamps: list[int], model_fov: set[int]) -> list:
     thread count the sums round differently, and a mask pixel at the 0.5 threshold can move a
     hand box by a pixel and the hand by centimetres.
     """
-    config = estimator_config_from_parameters(load_estimator_defaults())
+    config = EstimatorConfig()  # the node's defaults (config/estimator.yaml is made from them)
     wanted = set(stamps)
     outputs = []
     threads = torch.get_num_threads()

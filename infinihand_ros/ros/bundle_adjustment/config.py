@@ -1,27 +1,25 @@
-"""Settings of the bundle-adjustment node: its parameters, their specs and the BA settings.
+"""Settings of the bundle-adjustment node: its parameters (one dataclass tree) and BA settings.
 
-The node's own parameters (``config/bundle_adjustment.yaml``, node
-``infinihand_bundle_adjustment``) say which BA YAML to run (``config``: the ``ba`` section of
-``config/ba.yaml`` layout; '' is the package's) and how keyframes are taken in; the pool,
-solver, tracking and worker settings are that YAML's, so in-process BA and the node share one
-file.
+The node's own parameters (node ``infinihand_bundle_adjustment``) say which BA YAML to run
+(``config``: the ``ba`` section of ``config/ba.yaml`` layout; '' is the package's) and how
+keyframes are taken in; the pool, solver, tracking and worker settings are that YAML's, so
+in-process BA and the node share one file. The tree owns every parameter (``core.parameters``);
+``config/bundle_adjustment.yaml`` is generated from it.
 """
 
 from dataclasses import dataclass
-from dataclasses import field
 from pathlib import Path
 from typing import Any, Final
 
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.config import load_ba_config
-from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import config_from_dict
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.ros.estimator.config import load_node_defaults
-from infinihand_ros.ros.estimator.config import unflatten
-from infinihand_ros.ros.estimator.parameter_specs import ParameterSpec
+from infinihand_ros.core.parameters import nested
+from infinihand_ros.core.parameters import parameter
+from infinihand_ros.core.parameters import unflatten
 
 BA_NODE_NAME: Final = 'infinihand_bundle_adjustment'
 BA_PARAMS_FILE: Final = 'bundle_adjustment.yaml'
@@ -38,8 +36,10 @@ class KeyframeIntake:
 
     """
 
-    max_pending: int = 8
-    max_gap_s: float = 5.0
+    max_pending: int = parameter(8, 'Keyframes whose messages are still arriving, held at '
+                                 'most (oldest dropped).', 1, 10_000)
+    max_gap_s: float = parameter(5.0, 'A keyframe this much newer than the last (or older) '
+                                 'starts a new sequence, s.', 1e-3, 3600.0)
 
     def __post_init__(self) -> None:
         require_at_least('keyframes', 1, max_pending=self.max_pending)
@@ -50,12 +50,18 @@ class KeyframeIntake:
 class BundleAdjustmentNodeConfig:
     """Everything the BA node is configured with (``config/bundle_adjustment.yaml``)."""
 
-    config: str = ''
-    world_frame_id: str = 'world'
-    keyframes: KeyframeIntake = field(default_factory=KeyframeIntake)
-    refined_path_length: int = 1000
-    status_period_s: float = 1.0
-    close_timeout_s: float = 5.0
+    config: str = parameter('', 'BA YAML (config/ba.yaml layout, section ba); empty: the '
+                            "package's config/ba.yaml.")
+    world_frame_id: str = parameter('world', 'Frame id of the refined keyframe path and the '
+                                    'corrections.')
+    keyframes: KeyframeIntake = nested(KeyframeIntake)
+    refined_path_length: int = parameter(1000, 'Refined keyframe poses kept in '
+                                         '~/refined_keyframe_path (latched).', 1, 1_000_000)
+    status_period_s: float = parameter(1.0, 'Status period on /diagnostics and '
+                                       'bundle_adjustment/status (the heartbeat), s.', 1e-3,
+                                       3600.0)
+    close_timeout_s: float = parameter(5.0, 'On shutdown, a running BA call gets this long to '
+                                       'finish, s.', 0.0, 3600.0)
 
     def __post_init__(self) -> None:
         if not self.world_frame_id:
@@ -75,30 +81,6 @@ class BundleAdjustmentNodeConfig:
             raise ConfigError(f"config: {self.config!r} is not a file; give a BA YAML or '' "
                               "for the package's config/ba.yaml")
         return load_ba_config(Path(self.config).expanduser() if self.config else None)
-
-
-BA_NODE_PARAMETER_SPECS: Final = {
-    'config': ParameterSpec("BA YAML (config/ba.yaml layout, section ba); empty: the package's "
-                            'config/ba.yaml.'),
-    'world_frame_id': ParameterSpec('Frame id of the refined keyframe path and corrections.'),
-    'keyframes.max_pending': ParameterSpec('Keyframes whose messages are still arriving, held '
-                                           'at most.', 1, 10_000),
-    'keyframes.max_gap_s': ParameterSpec('A keyframe this much newer than the last (or older) '
-                                         'starts a new sequence, s.', 1e-3, 3600.0),
-    'refined_path_length': ParameterSpec('Refined keyframe poses kept in the latched path.', 1,
-                                         1_000_000),
-    'status_period_s': ParameterSpec('Status period on /diagnostics and '
-                                     'bundle_adjustment/status (the heartbeat), s.', 1e-3,
-                                     3600.0),
-    'close_timeout_s': ParameterSpec('On shutdown, a running BA call gets this long to finish, '
-                                     's.', 0.0, 3600.0),
-}
-
-
-def load_ba_node_defaults(path: str | Path | None = None) -> dict[str, Any]:
-    """Return the flat parameter defaults of ``config/bundle_adjustment.yaml`` (or ``path``)."""
-    return load_node_defaults(Path(path) if path is not None else config_dir() / BA_PARAMS_FILE,
-                              BA_NODE_NAME)
 
 
 def ba_node_config_from_parameters(values: dict[str, Any]) -> BundleAdjustmentNodeConfig:

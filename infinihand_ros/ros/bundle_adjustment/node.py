@@ -23,8 +23,7 @@ from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.bundle_adjustment.config import ba_node_config_from_parameters
 from infinihand_ros.ros.bundle_adjustment.config import BA_NODE_NAME
-from infinihand_ros.ros.bundle_adjustment.config import BA_NODE_PARAMETER_SPECS
-from infinihand_ros.ros.bundle_adjustment.config import load_ba_node_defaults
+from infinihand_ros.ros.bundle_adjustment.config import BundleAdjustmentNodeConfig
 from infinihand_ros.ros.bundle_adjustment.keyframe_assembly import KeyframeAssembler
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import corrections_msg
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import CORRECTIONS_TOPIC
@@ -57,10 +56,9 @@ class BundleAdjustmentNode(Node):
 
         """
         super().__init__(BA_NODE_NAME, **node_kwargs)
-        values = declare_parameters(self, load_ba_node_defaults(), BA_NODE_PARAMETER_SPECS,
-                                    'config/bundle_adjustment.yaml')
+        self.config = declare_parameters(self, BundleAdjustmentNodeConfig,
+                                         ba_node_config_from_parameters)
         try:
-            self.config = ba_node_config_from_parameters(values)
             ba = self.config.ba_config()
         except ConfigError as exc:
             raise ConfigError(f'parameter {exc}') from exc

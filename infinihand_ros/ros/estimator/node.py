@@ -32,6 +32,8 @@ from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.estimator.ba_node_client import BANodeClient
 from infinihand_ros.ros.estimator.camera_info_pairing import CameraInfoPairing
 from infinihand_ros.ros.estimator.camera_info_pairing import IntrinsicsChoice
+from infinihand_ros.ros.estimator.config import estimator_config_from_parameters
+from infinihand_ros.ros.estimator.config import EstimatorConfig
 from infinihand_ros.ros.estimator.config import NODE_NAME
 from infinihand_ros.ros.estimator.diagnostics import diagnostic_report
 from infinihand_ros.ros.estimator.engine_setup import engine_config_for
@@ -40,7 +42,7 @@ from infinihand_ros.ros.estimator.latest_frame import LatestFrameSlot
 from infinihand_ros.ros.estimator.node_statistics import EstimatorStatistics
 from infinihand_ros.ros.estimator.node_statistics import StatisticsSnapshot
 from infinihand_ros.ros.estimator.publishers import OutputPublishers
-from infinihand_ros.ros.parameters import declare_estimator_parameters
+from infinihand_ros.ros.parameters import declare_parameters
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.qos_overriding_options import QoSOverridingOptions
@@ -67,7 +69,7 @@ class EstimatorNode(Node):
 
         """
         super().__init__(NODE_NAME, **node_kwargs)
-        self.config = declare_estimator_parameters(self)
+        self.config = declare_parameters(self, EstimatorConfig, estimator_config_from_parameters)
         engine_config = engine_config_for(self.config)
         remote = (RemoteBA() if self.config.engine.bundle_adjustment == 'node'
                   and engine_config.camera_motion != 'static' else None)

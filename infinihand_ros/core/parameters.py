@@ -1,0 +1,140 @@
+"""Node parameters owned by one dataclass tree: defaults, descriptions, ranges and choices.
+
+Each field of a node's config dataclass is declared with ``parameter`` (or ``nested`` for a
+sub-tree); its dotted path is the ROS parameter name (field ``beta`` of ``smoothing``:
+``smoothing.beta``). From the tree alone come the node's declarations (``parameter_table``:
+default, description, numeric range, choices), the check of string choices
+(``check_choices``, from ``__post_init__``) and the shipped params file (``params_file_text``;
+a test compares it with the file in ``config/``).
+"""
+
+from collections.abc import Callable
+import dataclasses
+from dataclasses import dataclass
+import textwrap
+from typing import Any, Final
+
+from infinihand_ros.core.errors import ConfigError
+
+ROS_PARAMETERS_KEY: Final = 'ros__parameters'
+#: The params-file key that matches every node name (ROS 2 wildcard).
+ANY_NODE_KEY: Final = '/**'
+_SPEC: Final = 'parameter'
+#: Width of the generated params files.
+LINE_WIDTH: Final = 99
+
+
+@dataclass(frozen=True)
+class ParameterSpec:
+    """What a parameter means and which values it takes.
+
+    Attributes:
+        description: one sentence shown by parameter tools (choices are appended).
+        low: smallest value of a numeric parameter (None: no range).
+        high: largest value of a numeric parameter.
+        choices: the values a string parameter may take (empty: any).
+
+    """
+
+    description: str
+    low: float | None = None
+    high: float | None = None
+    choices: tuple[str, ...] = ()
+
+    @property
+    def full_description(self) -> str:
+        """Return the description with the choices, as parameter tools show it."""
+        if not self.choices:
+            return self.description
+        return f"{self.description} One of: {', '.join(self.choices)}."
+
+
+def parameter(default: Any, description: str, low: float | None = None,
+              high: float | None = None, choices: tuple[str, ...] = ()) -> Any:
+    """Return a dataclass field that is a node parameter with this default and spec."""
+    spec = ParameterSpec(description, low, high, choices)
+    return dataclasses.field(default=default, metadata={_SPEC: spec})
+
+
+def nested(factory: Callable[[], Any]) -> Any:
+    """Return a dataclass field holding a sub-tree of parameters (a dataclass)."""
+    return dataclasses.field(default_factory=factory)
+
+
+def check_choices(config: Any, prefix: str = '') -> None:
+    """Raise ConfigError naming the parameter when a field's value is not one of its choices."""
+    for field in dataclasses.fields(config):
+        spec = field.metadata.get(_SPEC)
+        value = getattr(config, field.name)
+        if spec is not None and spec.choices and value not in spec.choices:
+            raise ConfigError(f'{prefix}{field.name}: must be one of {list(spec.choices)}, got '
+                              f'{value!r}')
+
+
+def parameter_table(config_type: type, prefix: str = '') -> dict[str, tuple[Any, ParameterSpec]]:
+    """Return every parameter of the tree as dotted name -> (default, spec), in field order.
+
+    Raises:
+        TypeError: for a field that is neither a parameter nor a nested dataclass (a tree
+            that does not say what one of its settings means).
+
+    """
+    defaults = config_type()
+    table: dict[str, tuple[Any, ParameterSpec]] = {}
+    for field in dataclasses.fields(config_type):
+        name = f'{prefix}{field.name}'
+        value = getattr(defaults, field.name)
+        if dataclasses.is_dataclass(value):
+            table.update(parameter_table(type(value), f'{name}.'))
+        elif _SPEC in field.metadata:
+            table[name] = (value, field.metadata[_SPEC])
+        else:
+            raise TypeError(f'{config_type.__name__}.{field.name} has no parameter spec')
+    return table
+
+
+def unflatten(values: dict[str, Any]) -> dict[str, Any]:
+    """Return dotted names as nested mappings (``{'a.b': 1}`` -> ``{'a': {'b': 1}}``)."""
+    tree: dict[str, Any] = {}
+    for name, value in values.items():
+        *parents, leaf = name.split('.')
+        node = tree
+        for parent in parents:
+            node = node.setdefault(parent, {})
+        node[leaf] = value
+    return tree
+
+
+def params_file_text(config_type: type, header: str) -> str:
+    """Return the ROS 2 params file of a tree's defaults (keyed ``/**``), described in comments.
+
+    Args:
+        config_type: the node's config dataclass.
+        header: comment lines (without ``#``) put at the top of the file.
+
+    """
+    lines = [f'# {line}'.rstrip() for line in header.strip('\n').split('\n')]
+    lines += [f'{ANY_NODE_KEY}:', f'  {ROS_PARAMETERS_KEY}:']
+    opened: list[str] = []
+    for name, (default, spec) in parameter_table(config_type).items():
+        *parents, leaf = name.split('.')
+        common = 0
+        while common < min(len(opened), len(parents)) and opened[common] == parents[common]:
+            common += 1
+        for depth in range(common, len(parents)):
+            lines.append(f"{'  ' * (depth + 2)}{parents[depth]}:")
+        opened = parents
+        indent = '  ' * (len(parents) + 2)
+        lines += [f'{indent}# {line}' for line in
+                  textwrap.wrap(spec.full_description, LINE_WIDTH - len(indent) - 2)]
+        lines.append(f'{indent}{leaf}: {_yaml_scalar(default)}')
+    return '\n'.join(lines) + '\n'
+
+
+def _yaml_scalar(value: Any) -> str:
+    """Return a default as a YAML scalar of the same type (floats keep a decimal point)."""
+    if isinstance(value, bool):
+        return 'true' if value else 'false'
+    if isinstance(value, str):
+        return "''" if not value else value
+    return repr(value)
