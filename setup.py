@@ -32,10 +32,10 @@ setup(
         'console_scripts': [
             f'synth = {PACKAGE_NAME}.synth.cli:main',
             f'train = {PACKAGE_NAME}.train.cli:main',
-            f'estimator = {PACKAGE_NAME}.ros.estimator.main:main',
+            f'estimator = {PACKAGE_NAME}.ros.estimator.node:main',
             f'replay = {PACKAGE_NAME}.tools.replay:main',
             f'record = {PACKAGE_NAME}.tools.record:main',
-            f'bundle_adjustment = {PACKAGE_NAME}.ros.bundle_adjustment.main:main',
+            f'bundle_adjustment = {PACKAGE_NAME}.ros.bundle_adjustment.node:main',
             f'bag_to_dataset = {PACKAGE_NAME}.convert.cli:console_main',
             f'build_corpus = {PACKAGE_NAME}.data.corpus_cli:main',
             f'live_demo = {PACKAGE_NAME}.tools.live_demo:main',

@@ -1,9 +1,9 @@
 """The estimator's link state to the BA node (ros/estimator/ba_link.py)."""
 
-from infinihand_ros.ros.estimator.ba_link import BANodeLink
-from infinihand_ros.ros.estimator.ba_link import CONNECTED
-from infinihand_ros.ros.estimator.ba_link import LOST
-from infinihand_ros.ros.estimator.ba_link import WAITING
+from infinihand_ros.ros.estimator.ba_node_client import BANodeLink
+from infinihand_ros.ros.estimator.diagnostics import CONNECTED
+from infinihand_ros.ros.estimator.diagnostics import LOST
+from infinihand_ros.ros.estimator.diagnostics import WAITING
 import numpy as np
 
 

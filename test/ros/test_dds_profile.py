@@ -1,6 +1,6 @@
 """The package's Fast DDS profile as our commands' default (ros/dds_profile.py)."""
 
-from infinihand_ros.ros.dds_profile import use_package_dds_profile
+from infinihand_ros.ros.node_process import use_package_dds_profile
 
 
 def test_profile_is_set_when_the_user_set_none() -> None:

@@ -1,6 +1,6 @@
 """Keyframe parts put back together by stamp (ros/bundle_adjustment/keyframe_assembly.py)."""
 
-from infinihand_ros.ros.bundle_adjustment.keyframe_assembly import KeyframeAssembler
+from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import KeyframeAssembler
 import pytest
 
 PARTS = ('image', 'depth', 'pose')

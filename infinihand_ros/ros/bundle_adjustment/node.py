@@ -7,8 +7,14 @@ corrections on ``bundle_adjustment/corrections`` (the estimator applies them) an
 latched ``~/refined_keyframe_path`` (nav_msgs/Path of every refined keyframe pose still held).
 A status goes to ``/diagnostics`` and, as the estimator's heartbeat, to
 ``bundle_adjustment/status``. A bad keyframe is logged (throttled), counted and skipped.
+
+``main`` runs it with ``node_process.run_node``: SIGINT and SIGTERM end the spin, the BA worker is
+stopped (a running call gets ``close_timeout_s``) and the process exits 0. A bad parameter stops
+it at start-up with one error line naming it, exit code 1. Start it next to an estimator run
+with ``engine.bundle_adjustment:=node``; either may start first or restart.
 """
 
+import sys
 from typing import Any, Final
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -24,12 +30,12 @@ from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.bundle_adjustment.config import ba_node_config_from_parameters
 from infinihand_ros.ros.bundle_adjustment.config import BA_NODE_NAME
 from infinihand_ros.ros.bundle_adjustment.config import BundleAdjustmentNodeConfig
-from infinihand_ros.ros.bundle_adjustment.keyframe_assembly import KeyframeAssembler
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import corrections_msg
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import CORRECTIONS_TOPIC
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import keyframe_from_msgs
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import KEYFRAME_PARTS
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import KEYFRAME_PREFIX
+from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import KeyframeAssembler
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import LINK_QOS
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import STATE_KEY
 from infinihand_ros.ros.bundle_adjustment.keyframe_msgs import STATUS_TOPIC
@@ -37,6 +43,7 @@ from infinihand_ros.ros.estimator.diagnostics import DiagnosticReport
 from infinihand_ros.ros.estimator.node_statistics import OK
 from infinihand_ros.ros.estimator.node_statistics import WARN
 from infinihand_ros.ros.estimator.publishers import LATCHED_QOS
+from infinihand_ros.ros.node_process import run_node
 from infinihand_ros.ros.parameters import declare_parameters
 from nav_msgs.msg import Path
 from rclpy.node import Node
@@ -131,3 +138,12 @@ class BundleAdjustmentNode(Node):
                                           if worker.last_error else '')
         return DiagnosticReport(WARN if failing else OK, message,
                                 tuple((key, str(value)) for key, value in values))
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node until shut down; return the exit code."""
+    return run_node(BundleAdjustmentNode, BA_NODE_NAME, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

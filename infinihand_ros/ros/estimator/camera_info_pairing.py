@@ -9,13 +9,14 @@ they are configured, else None (the model predicts the field of view).
 
 from collections import deque
 from dataclasses import dataclass
-from typing import Any, Final
+from typing import Final
 
 from infinihand_ros.bag.camera_msgs import camera_info_to_intrinsics
 from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.ros.estimator.config import FallbackIntrinsics
+from sensor_msgs.msg import CameraInfo
 
 #: Where a frame's intrinsics came from.
 FROM_CAMERA_INFO: Final = 'camera_info'
@@ -79,7 +80,7 @@ class CameraInfoPairing:
                 best = (gap, intrinsics)
         return None if best is None else best[1]
 
-    def add(self, msg: Any) -> None:
+    def add(self, msg: CameraInfo) -> None:
         """Store a CameraInfo message.
 
         Raises:

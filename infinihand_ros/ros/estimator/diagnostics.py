@@ -12,7 +12,6 @@ from dataclasses import dataclass
 import math
 from typing import Final
 
-from infinihand_ros.ros.estimator.ba_link import UNAVAILABLE
 from infinihand_ros.ros.estimator.camera_info_pairing import FROM_CAMERA_INFO
 from infinihand_ros.ros.estimator.camera_info_pairing import FROM_FALLBACK
 from infinihand_ros.ros.estimator.camera_info_pairing import FROM_MODEL
@@ -21,7 +20,12 @@ from infinihand_ros.ros.estimator.node_statistics import STALE
 from infinihand_ros.ros.estimator.node_statistics import StatisticsSnapshot
 from infinihand_ros.ros.estimator.node_statistics import WARN
 
-
+#: States of the link to the bundle-adjustment node (``ba_node_client.BANodeLink``).
+WAITING: Final = 'waiting'
+CONNECTED: Final = 'connected'
+LOST: Final = 'lost'
+#: Link states in which poses go on unrefined, and how diagnostics say so.
+UNAVAILABLE: Final = {WAITING: 'not seen yet', LOST: 'lost'}
 #: Intrinsics sources, each reported as ``intrinsics_from_<source>`` (frames since start).
 INTRINSICS_SOURCES: Final = (FROM_CAMERA_INFO, FROM_FALLBACK, FROM_MODEL)
 

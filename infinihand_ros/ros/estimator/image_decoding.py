@@ -8,13 +8,15 @@ bytes must be complete (start and end markers of the codec), because OpenCV sile
 truncated JPEG into a partly grey image. Decoding is ``bag.camera_msgs.compressed_msg_to_image``.
 """
 
-from typing import Any, Final
+from typing import Final
 
 from infinihand_ros.bag.camera_msgs import CODEC_EXTENSIONS
 from infinihand_ros.bag.camera_msgs import compressed_msg_to_image
 from infinihand_ros.bag.camera_msgs import msg_to_image
 from infinihand_ros.core.errors import InputError
 import numpy as np
+from sensor_msgs.msg import CompressedImage
+from sensor_msgs.msg import Image
 
 #: First and last bytes of a complete file of each codec.
 JPEG_START: Final = b'\xff\xd8'
@@ -55,7 +57,7 @@ def check_complete(data: bytes, codec: str) -> None:
                          '(no end marker)')
 
 
-def decode_compressed(msg: Any) -> np.ndarray:
+def decode_compressed(msg: CompressedImage) -> np.ndarray:
     """Decode a CompressedImage message to (H, W, 3) uint8 RGB.
 
     Raises:
@@ -70,7 +72,7 @@ def decode_compressed(msg: Any) -> np.ndarray:
     return compressed_msg_to_image(msg)
 
 
-def decode_image(msg: Any) -> np.ndarray:
+def decode_image(msg: Image | CompressedImage) -> np.ndarray:
     """Decode an Image or a CompressedImage message to (H, W, 3) uint8 RGB.
 
     Raises:

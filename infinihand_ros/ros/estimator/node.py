@@ -11,10 +11,15 @@ parameters. With ``engine.bundle_adjustment: node`` the engine's ``RemoteBA`` ba
 keyframes and takes corrections, and ``BANodeClient`` carries them to and from the bundle-
 adjustment node (corrections are folded in before each frame and while no frame comes); without
 that node the poses go on unrefined and diagnostics say so.
+
+``main`` runs it with ``node_process.run_node``: SIGINT and SIGTERM (rclpy's signal handlers)
+end the spin, the inference thread and the engine are stopped, and the process exits 0. A bad
+parameter or checkpoint stops it at start-up with one error line naming it, exit code 1.
 """
 
 from collections import OrderedDict
 import copy
+import sys
 import threading
 from typing import Any, Final
 
@@ -23,6 +28,7 @@ from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.core import topics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
+from infinihand_ros.core.latest_frame import LatestFrameSlot
 from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine.ba_remote import RemoteBA
@@ -38,10 +44,10 @@ from infinihand_ros.ros.estimator.config import NODE_NAME
 from infinihand_ros.ros.estimator.diagnostics import diagnostic_report
 from infinihand_ros.ros.estimator.engine_setup import engine_config_for
 from infinihand_ros.ros.estimator.image_decoding import decode_image
-from infinihand_ros.ros.estimator.latest_frame import LatestFrameSlot
 from infinihand_ros.ros.estimator.node_statistics import EstimatorStatistics
 from infinihand_ros.ros.estimator.node_statistics import StatisticsSnapshot
 from infinihand_ros.ros.estimator.publishers import OutputPublishers
+from infinihand_ros.ros.node_process import run_node
 from infinihand_ros.ros.parameters import declare_parameters
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
@@ -232,3 +238,12 @@ class EstimatorNode(Node):
         self._previous = snapshot
         self._diagnostics.publish(msg_builders.diagnostic_array_msg(
             now, f'{self.get_name()}: estimator', self.get_fully_qualified_name(), report))
+
+
+def main(args: list[str] | None = None) -> int:
+    """Run the node until shut down; return the exit code."""
+    return run_node(EstimatorNode, NODE_NAME, args)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,8 +1,8 @@
-"""The latest-frame mailbox (ros/estimator/latest_frame.py)."""
+"""The latest-frame mailbox (core/latest_frame.py)."""
 
 import threading
 
-from infinihand_ros.ros.estimator.latest_frame import LatestFrameSlot
+from infinihand_ros.core.latest_frame import LatestFrameSlot
 
 
 def test_newest_wins_and_drops_are_counted() -> None:
