@@ -48,9 +48,9 @@ def test_bad_params_file_value_stops_the_node(tmp_path: Path) -> None:
 def test_renamed_node_gets_the_shipped_params_file(tmp_path: Path) -> None:
     """The shipped file (keyed /**) reaches a node renamed with __node:=; a bad value stops it."""
     shipped = (SHARE / 'config' / 'estimator.yaml').read_text()
-    assert 'motion: estimate ' in shipped
+    assert 'motion: estimate\n' in shipped
     params = tmp_path / 'estimator.yaml'
-    params.write_text(shipped.replace('motion: estimate ', 'motion: moving '))
+    params.write_text(shipped.replace('motion: estimate\n', 'motion: moving\n'))
     done = run_estimator(['-r', '__node:=renamed_estimator', '--params-file', str(params)])
     assert done.returncode == 1, done.stderr
     assert 'camera.motion' in done.stderr and 'cannot start' in done.stderr

@@ -123,6 +123,7 @@ class BANodeClient:
         self._world = world_frame_id
         self.remote = remote
         self.link = BANodeLink(config.timeout_s, STAMPS_KEPT)
+        self._folded_in_logged = 0
         self._publishers = {part: node.create_publisher(msg_type, KEYFRAME_PREFIX + part,
                                                         LINK_QOS)
                             for part, msg_type in KEYFRAME_PARTS.items()}
@@ -138,6 +139,14 @@ class BANodeClient:
             self._publishers[part].publish(msg)
         self.link.sent(keyframe.timestamp_ns)
         return True
+
+    def report_folded_in(self) -> None:
+        """Log the BA results the engine folded into its pose track since the last call."""
+        folded_in = self.remote.statistics()['folded_in']
+        if folded_in > self._folded_in_logged:
+            self._node.get_logger().info(f'applied bundle-adjustment corrections '
+                                         f'({folded_in - self._folded_in_logged} BA results)')
+            self._folded_in_logged = folded_in
 
     def send_keyframes(self, camera_frame_id: str) -> None:
         """Publish the keyframes the engine offered since the last call."""
@@ -172,8 +181,6 @@ class BANodeClient:
                 'stream)', throttle_duration_sec=LOG_PERIOD_S)
             return
         self.remote.receive(corrections)
-        self._node.get_logger().info(f'received bundle-adjustment corrections of '
-                                     f'{len(corrections.times_ns)} keyframes')
 
     def _on_status(self, msg: DiagnosticArray) -> None:
         """Take a BA node status as its heartbeat."""

@@ -199,12 +199,14 @@ class EstimatorNode(Node):
             self.statistics.frame_published(now / NS_PER_S, (now - stamp) / NS_PER_S,
                                             (now - arrival) / NS_PER_S)
         if self._ba_node is not None:
+            self._ba_node.report_folded_in()
             self._ba_node.send_keyframes(camera_frame)
 
     def _fold_in_corrections(self) -> None:
         """Fold the BA node's corrections received since the last frame into the engine."""
         if self._ba_node is not None:
             self.engine.fold_in_ba()
+            self._ba_node.report_folded_in()
 
     def _best_pose(self, frame_index: int) -> PoseFields | None:
         """Return the engine's current best pose of a frame, None once it left the track."""
