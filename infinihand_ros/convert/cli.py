@@ -18,6 +18,7 @@ from typing import Final
 from infinihand_ros.convert.config import ConvertConfig
 from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.dataset_writer import DatasetWriter
+from infinihand_ros.convert.image_fit import RESIZE_MODES
 from infinihand_ros.convert.inputs import discover_inputs
 from infinihand_ros.convert.inputs import InputSource
 from infinihand_ros.convert.ray_run import convert_on_ray
@@ -26,6 +27,7 @@ from infinihand_ros.convert.report import EpisodeReport
 from infinihand_ros.convert.report import FAILED
 from infinihand_ros.convert.report import summary_table
 from infinihand_ros.convert.run import ConversionRun
+from infinihand_ros.convert.run import resolve_video_size
 from infinihand_ros.convert.run import RunOptions
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.datatypes import Intrinsics
@@ -61,6 +63,12 @@ def build_parser() -> argparse.ArgumentParser:
                         help='split inputs into episodes of at most this many seconds')
     parser.add_argument('--intrinsics', help='fx,fy,cx,cy,width,height of video inputs '
                         '(default: predicted by the model)')
+    parser.add_argument('--video-size', metavar='WxH', help="size of the dataset's videos; "
+                        'inputs of another size are fitted to it, intrinsics mapped (default: '
+                        "the existing dataset's, else the first input's)")
+    parser.add_argument('--resize', choices=RESIZE_MODES, help='how inputs of another size '
+                        'are fitted: letterbox (scaled, padded black; the default) or crop '
+                        '(scaled, centre-cropped)')
     parser.add_argument('--engine-config', type=Path, help='engine YAML (default: '
                         'config/engine.yaml)')
     parser.add_argument('--no-ba', action='store_true', help='turn bundle adjustment off')
@@ -105,7 +113,12 @@ def validate_args(args: argparse.Namespace) -> tuple[ConvertConfig, RunOptions]:
             engine = replace(engine, config=str(args.engine_config))
         if args.no_ba:
             engine = replace(engine, bundle_adjustment=False)
-        overrides = {'engine': engine}
+        layout = config.dataset
+        if args.video_size is not None:
+            layout = replace(layout, video_size=args.video_size)
+        if args.resize is not None:
+            layout = replace(layout, resize=args.resize)
+        overrides = {'engine': engine, 'dataset': layout}
         for key, value in (('fps', args.fps), ('task', args.task),
                            ('episode_max_s', args.episode_seconds)):
             if value is not None:
@@ -151,6 +164,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f'bag_to_dataset: error: {exc}', file=sys.stderr)
         return EXIT_USAGE
     sources, failures = discover_inputs(args.inputs)
+    try:
+        config = resolve_video_size(config, writer.video_size, sources, options)
+    except InfiniHandError as exc:
+        print(f'bag_to_dataset: error: {exc}', file=sys.stderr)
+        return EXIT_USAGE
     reports = [EpisodeReport(str(f.path), status=FAILED, error=f.reason) for f in failures]
     interrupted = False
     try:

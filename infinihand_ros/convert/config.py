@@ -11,6 +11,9 @@ import math
 from pathlib import Path
 from typing import Final
 
+from infinihand_ros.convert.image_fit import LETTERBOX
+from infinihand_ros.convert.image_fit import parse_video_size
+from infinihand_ros.convert.image_fit import RESIZE_MODES
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import load_config
 from infinihand_ros.core.config import require_at_least
@@ -55,6 +58,10 @@ class DatasetLayout:
         invalid_fill: value written into the features of a hand that is not valid (its flag in
             ``hands.valid`` is False); NaN is allowed.
         action_offset: ``action`` is the state this many frames later.
+        video_size: 'WxH' of every episode's video; '' for the existing dataset's, else the
+            first input's. Inputs of another size are fitted to it (``image_fit``).
+        resize: how they are fitted: 'letterbox' (scaled, padded black) or 'crop' (scaled,
+            centre-cropped).
 
     """
 
@@ -63,10 +70,16 @@ class DatasetLayout:
     chunks_size: int = 1000
     invalid_fill: float = 0.0
     action_offset: int = 1
+    video_size: str = ''
+    resize: str = LETTERBOX
 
     def __post_init__(self) -> None:
         require_at_least('convert.dataset', 1, chunks_size=self.chunks_size,
                          action_offset=self.action_offset)
+        parse_video_size(self.video_size, 'convert.dataset.video_size')
+        if self.resize not in RESIZE_MODES:
+            raise ConfigError(f'convert.dataset.resize must be one of {list(RESIZE_MODES)}, '
+                              f'got {self.resize!r}')
         if '/' in self.video_key or not self.video_key:
             raise ConfigError(f'convert.dataset.video_key: LeRobot feature names are non-empty '
                               f'and hold no "/", got {self.video_key!r}')

@@ -68,6 +68,14 @@ class DatasetWriter:
         """Return the number of episodes in the dataset."""
         return len(self._rows)
 
+    @property
+    def video_size(self) -> tuple[int, int] | None:
+        """Return (width, height) of the dataset's videos, or None before the first episode."""
+        if self._info is None:
+            return None
+        height, width = self._info['features'][self.config.dataset.video_key]['shape'][:2]
+        return width, height
+
     def finished_sources(self) -> set[str]:
         """Return the sources of the episodes already in the dataset."""
         return {record['source'] for record in self._records}
@@ -92,10 +100,7 @@ class DatasetWriter:
         index, config = self.num_episodes, self.config
         features = layout.feature_infos(config.dataset.video_key, episode.video, config.fps)
         if self._info is not None and features != self._info['features']:
-            shape = self._info['features'][config.dataset.video_key]['shape']
-            raise ConversionError(f'video {episode.video.width}x{episode.video.height} differs '
-                                  f"from the dataset's {shape[1]}x{shape[0]}; convert it into "
-                                  'another --output')
+            raise ConversionError(_features_difference(self._info['features'], features))
         if task not in self._tasks:
             self._tasks.append(task)
         from_index = sum(row['length'] for row in self._rows)
@@ -110,6 +115,7 @@ class DatasetWriter:
         placed = self._place_files(index, columns, episode)
         episode.report.episode_index = index
         record = {'episode_index': index, 'source': episode.report.source, 'task': task,
+                  'image': episode.image, 'provenance': episode.provenance,
                   'report': episode.report.to_dict()}
         try:
             self._write_meta(self._rows + [row], self._records + [record], features)
@@ -207,6 +213,17 @@ class DatasetWriter:
             for path in self.root.glob(pattern):
                 if path not in listed:
                     _remove(path)
+
+
+def _features_difference(dataset: dict[str, Any], episode: dict[str, Any]) -> str:
+    """Say how an episode's features differ from the dataset's."""
+    keys = sorted(set(dataset) ^ set(episode))
+    if keys:
+        return (f'the dataset was written with other features (not both have {keys}); '
+                'convert into another --output')
+    changed = sorted(key for key in dataset if dataset[key] != episode[key])
+    return (f"features {changed} differ from the dataset's ({[dataset[k] for k in changed]} "
+            f'vs {[episode[k] for k in changed]}); convert into another --output')
 
 
 def _parquet_bytes(table: pa.Table) -> bytes:

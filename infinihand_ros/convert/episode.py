@@ -14,8 +14,10 @@ from collections.abc import Callable
 from collections.abc import Iterable
 import dataclasses
 from dataclasses import dataclass
+from dataclasses import field
 from pathlib import Path
 import time
+from typing import Any
 
 from infinihand_ros.convert.config import ConvertConfig
 from infinihand_ros.convert.estimates_bag import EstimatesBagWriter
@@ -63,6 +65,8 @@ class EpisodeData:
         image_stats: the video's statistics.
         estimates_bag: the MCAP bag of the estimates, or None.
         report: the episode's report (filled in).
+        image: how the source frames were fitted to the video (``image_fit.mapping_record``).
+        provenance: what converted it (``provenance.Provenance.to_dict``).
 
     """
 
@@ -72,6 +76,8 @@ class EpisodeData:
     image_stats: Stats
     estimates_bag: Path | None
     report: EpisodeReport
+    image: dict[str, Any] = field(default_factory=dict)
+    provenance: dict[str, Any] = field(default_factory=dict)
 
     @property
     def length(self) -> int:

@@ -7,6 +7,7 @@ run goes on; an episode already in the dataset (same source) is skipped.
 """
 
 from collections import Counter
+from collections.abc import Generator
 from collections.abc import Iterator
 import contextlib
 from dataclasses import dataclass
@@ -14,7 +15,7 @@ from dataclasses import replace
 import itertools
 import logging
 from pathlib import Path
-from typing import Protocol
+from typing import Any, Protocol
 
 from infinihand_ros.ba.config import for_offline_runs
 from infinihand_ros.ba.config import load_ba_config
@@ -25,8 +26,12 @@ from infinihand_ros.convert.episode import ConversionError
 from infinihand_ros.convert.episode import convert_episode
 from infinihand_ros.convert.episode import EpisodeData
 from infinihand_ros.convert.frame_log import FrameLog
+from infinihand_ros.convert.image_fit import FrameFitter
+from infinihand_ros.convert.image_fit import needs_fit
+from infinihand_ros.convert.image_fit import parse_video_size
 from infinihand_ros.convert.inputs import InputSource
 from infinihand_ros.convert.inputs import VIDEO
+from infinihand_ros.convert.provenance import provenance_of
 from infinihand_ros.convert.report import EpisodeReport
 from infinihand_ros.convert.report import FAILED
 from infinihand_ros.convert.report import SKIPPED
@@ -128,6 +133,7 @@ class ConversionRun:
         self._engine: StreamingEngine | None = None
         self._typestore = build_typestore() if config.estimates_bag else None
         self._marks: tuple[int, Counter, Counter] = (0, Counter(), Counter())
+        self._provenance: dict[str, Any] = {}
 
     def close(self) -> None:
         """Stop the engine's workers."""
@@ -136,13 +142,10 @@ class ConversionRun:
 
     def _engine_instance(self) -> StreamingEngine:
         if self._engine is None:
-            self._engine = StreamingEngine(engine_config_for(self.config))
+            engine_config = engine_config_for(self.config)
+            self._provenance = provenance_of(engine_config).to_dict()
+            self._engine = StreamingEngine(engine_config)
         return self._engine
-
-    def _frames(self, source: InputSource, log: FrameLog) -> Iterator[SourceFrame]:
-        if source.kind == VIDEO:
-            return read_video_frames(source.path, self.options.intrinsics, log)
-        return read_bag_frames(source.path, self.options.image_topic, log)
 
     def convert(self, source: InputSource) -> None:
         """Convert one input into one or more episodes; failures become reports."""
@@ -151,14 +154,17 @@ class ConversionRun:
         windowed = self.config.episode_max_s is not None
         seen = False
         name = str(source.path)
+        layout = self.config.dataset
+        fitter = FrameFitter(parse_video_size(layout.video_size), layout.resize)
         try:
-            frames = checked_frames(self._frames(source, log), log)
+            frames = (fitter.fit(frame) for frame in checked_frames(
+                read_source_frames(source, self.options, log), log))
             groups = itertools.groupby(split_windows(frames, self.config.episode_max_s),
                                        key=lambda pair: pair[0])
             for window, pairs in groups:
                 seen = True
                 name = f'{source.path}#{window}' if windowed else str(source.path)
-                self._episode(source, name, (frame for _, frame in pairs), log)
+                self._episode(source, name, (frame for _, frame in pairs), log, fitter)
             if not seen:
                 raise ConversionError(_no_frame_message(log))
         except (InfiniHandError, OSError) as exc:
@@ -166,7 +172,7 @@ class ConversionRun:
             logger.error('%s: %s', name, exc)
 
     def _episode(self, source: InputSource, name: str, frames: Iterator[SourceFrame],
-                 log: FrameLog) -> None:
+                 log: FrameLog, fitter: FrameFitter) -> None:
         """Convert (or skip) one episode of ``source``."""
         if name in self.writer.finished_sources():
             for _ in frames:
@@ -188,8 +194,53 @@ class ConversionRun:
                 report.skipped = dict(log.skipped - skipped)
                 report.warnings = dict(log.warnings - warned)
                 self._marks = (log.read, Counter(log.skipped), Counter(log.warnings))
+            episode = replace(episode, image=dict(fitter.record or {}),
+                              provenance=self._provenance)
             self.writer.add(episode, task_for(source, self.config))
         self.reports.append(report)
+
+
+def read_source_frames(source: InputSource, options: RunOptions,
+                       log: FrameLog) -> Generator[SourceFrame, None, None]:
+    """Return the stream of ``source``'s frames as read (before any check)."""
+    if source.kind == VIDEO:
+        return read_video_frames(source.path, options.intrinsics, log)
+    return read_bag_frames(source.path, options.image_topic, log)
+
+
+def resolve_video_size(config: ConvertConfig, dataset_size: tuple[int, int] | None,
+                       sources: list[InputSource], options: RunOptions) -> ConvertConfig:
+    """Return ``config`` with the dataset's video size set, so every worker fits to it.
+
+    The size is ``convert.dataset.video_size`` when set, else the existing dataset's, else the
+    first frame of the first input that has one (inputs that cannot be read are left to fail
+    in the run); unchanged when no input has a frame.
+
+    Raises:
+        ConversionError: when the configured size differs from the existing dataset's.
+
+    """
+    configured = parse_video_size(config.dataset.video_size)
+    if configured is not None:
+        if dataset_size is not None and needs_fit(configured, dataset_size):
+            raise ConversionError(
+                f"--video-size {configured[0]}x{configured[1]}: the dataset's videos are "
+                f'{dataset_size[0]}x{dataset_size[1]}; leave it out to extend the dataset')
+        return config
+    size = dataset_size
+    for source in sources if size is None else ():
+        log = FrameLog()
+        try:
+            with contextlib.closing(read_source_frames(source, options, log)) as frames:
+                first = next(checked_frames(frames, log), None)
+        except (InfiniHandError, OSError):
+            continue
+        if first is not None:
+            size = (first.rgb.shape[1], first.rgb.shape[0])
+            break
+    if size is None:
+        return config
+    return replace(config, dataset=replace(config.dataset, video_size=f'{size[0]}x{size[1]}'))
 
 
 def _no_frame_message(log: FrameLog) -> str:
