@@ -4,13 +4,16 @@ Adding an episode writes its data file and moves its video (and bag of estimates
 then replaces the whole ``meta/`` directory at once (``core.atomic_io.atomic_directory``): the
 metadata is the record of what the dataset holds. A run that stops anywhere (Ctrl-C, a crash, a
 full disk) leaves the previous metadata, and files it does not list are removed when the next
-run opens the dataset; episodes converted by an earlier run are skipped by their source.
+run opens the dataset; episodes converted by an earlier run are skipped by their source. The
+dataset card (``README.md``, ``dataset_card``) is written atomically after ``meta/`` and again
+when a run opens a dataset whose card is not its metadata's.
 """
 
 from collections.abc import Iterator
 import contextlib
 import io
 import json
+import logging
 import os
 from pathlib import Path
 import shutil
@@ -19,6 +22,8 @@ from typing import Any, Final
 
 from infinihand_ros.convert import lerobot_layout as layout
 from infinihand_ros.convert.config import ConvertConfig
+from infinihand_ros.convert.dataset_card import CARD_FILE
+from infinihand_ros.convert.dataset_card import dataset_card
 from infinihand_ros.convert.episode import ConversionError
 from infinihand_ros.convert.episode import EpisodeData
 from infinihand_ros.convert.stats import merge_stats
@@ -33,6 +38,8 @@ from infinihand_ros.data.lerobot_features import TASK_INDEX
 import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
+
+logger = logging.getLogger(__name__)
 
 #: Prefix of the per-episode working directories inside the dataset root.
 STAGING_PREFIX: Final = '.episode-'
@@ -127,6 +134,11 @@ class DatasetWriter:
         self._rows.append(row)
         self._records.append(record)
         self._info = json.loads((self.root / layout.INFO_PATH).read_text(encoding='utf-8'))
+        try:
+            self._write_card(self._info, self._records)
+        except OSError as exc:  # the episode is in; the card follows on the next open
+            logger.error('%s: dataset card not written (%s); the next run writes it',
+                         self.root / CARD_FILE, exc)
         return index
 
     def _paths(self, index: int) -> dict[str, Path]:
@@ -173,7 +185,10 @@ class DatasetWriter:
                 per_feature.setdefault(key, []).append(stats)
         merged = {key: layout.stats_to_lists(merge_stats(parts))
                   for key, parts in per_feature.items()}
-        conversion = {'episodes': records, 'config': config_to_dict(config)}
+        provenance = list({json.dumps(r['provenance'], sort_keys=True): r['provenance']
+                           for r in records if r.get('provenance')}.values())
+        conversion = {'episodes': records, 'provenance': provenance,
+                      'config': config_to_dict(config)}
         with atomic_directory(self.root / 'meta', overwrite=True) as work:
             meta_root = work.parent
             files = {
@@ -186,6 +201,13 @@ class DatasetWriter:
                 path = meta_root / relative
                 path.parent.mkdir(parents=True, exist_ok=True)
                 path.write_bytes(data)
+
+    def _write_card(self, info: dict[str, Any], records: list[dict[str, Any]]) -> None:
+        """Write the dataset card (atomically) when it differs from the metadata's."""
+        card = dataset_card(info, records, self._tasks).encode()
+        path = self.root / CARD_FILE
+        if not path.is_file() or path.read_bytes() != card:
+            atomic_write_bytes(path, card)
 
     def _load(self) -> None:
         """Read the dataset's metadata and check it matches the config."""
@@ -200,11 +222,12 @@ class DatasetWriter:
         self._tasks = pq.read_table(self.root / layout.TASKS_PATH).column('task').to_pylist()
         conversion = json.loads((self.root / layout.CONVERSION_PATH).read_text(encoding='utf-8'))
         self._records = conversion['episodes']
+        self._write_card(info, self._records)  # a run stopped between meta/ and the card
 
     def _remove_leftovers(self) -> None:
         """Remove staging directories and files no episode row lists (an interrupted add)."""
         for path in self.root.iterdir():
-            if path.name.startswith(STAGING_PREFIX) or path.name.startswith('.meta.'):
+            if path.name.startswith((STAGING_PREFIX, '.meta.', f'.{CARD_FILE}.')):
                 _remove(path)
         listed = {path for index in range(self.num_episodes)
                   for path in self._paths(index).values()}

@@ -11,6 +11,8 @@ world; the values of an invalid hand are ``invalid_fill`` and ``hands.valid`` sa
 
 Only ``observation.state``, ``action`` and the video start with ``observation.``/``action`` so
 that LeRobot policies take exactly those as inputs and targets; the other features are data.
+``camera.flags`` marks keyframes (frames in the streaming memory) and frames whose pose bundle
+adjustment corrected.
 ``observation.state`` per hand: wrist position (3), wrist rotation as 6D (the first two columns
 of the MANO global orientation matrix, 6), the five fingertips (15).
 """
@@ -45,6 +47,7 @@ KEYPOINTS_WRIST: Final = 'hands.keypoints_wrist'
 MANO_GLOBAL_ORIENT: Final = 'hands.mano.global_orient'
 MANO_HAND_POSE: Final = 'hands.mano.hand_pose'
 MANO_BETAS: Final = 'hands.mano.betas'
+CAMERA_FLAGS: Final = 'camera.flags'
 SOURCE_STAMP: Final = 'source.stamp_ns'
 #: LeRobot's bookkeeping columns (shape (1,), no names).
 TIMESTAMP: Final = 'timestamp'
@@ -55,6 +58,9 @@ TASK_INDEX: Final = 'task_index'
 DEFAULT_FEATURES: Final = {TIMESTAMP: 'float32', FRAME_INDEX: 'int64', EPISODE_INDEX: 'int64',
                            INDEX: 'int64', TASK_INDEX: 'int64'}
 
+#: A frame is flagged ``ba_corrected`` when BA moved its pose by more than this (m, or rotation
+#: matrix entries).
+BA_CORRECTED_TOL: Final = 1e-6
 XYZ: Final = ('x', 'y', 'z')
 NOT_DETECTED: Final = 'not detected'
 NOT_IN_WORLD: Final = 'detected but not placed in the world'
@@ -95,6 +101,7 @@ FRAME_FEATURES: Final = (
     FeatureSpec(CAMERA_POSE, 'float32',
                 tuple(f'T_world_cam_{row}{col}' for row in range(4) for col in range(4))),
     FeatureSpec(INTRINSICS, 'float32', ('fx', 'fy', 'cx', 'cy')),
+    FeatureSpec(CAMERA_FLAGS, 'bool', ('keyframe', 'ba_corrected')),
     FeatureSpec(HAND_VALID, 'bool', SIDE_NAMES),
     FeatureSpec(HAND_CONFIDENCE, 'float32', SIDE_NAMES),
     FeatureSpec(WRIST_POSE, 'float32', _per_side(
@@ -110,7 +117,7 @@ FRAME_FEATURES: Final = (
 HAND_FEATURES: Final = (STATE, HAND_VALID, HAND_CONFIDENCE, WRIST_POSE, KEYPOINTS_WORLD,
                         KEYPOINTS_WRIST, MANO_GLOBAL_ORIENT, MANO_HAND_POSE, MANO_BETAS)
 #: Features filled from one engine result (all but ``action`` and the source stamp).
-RESULT_FEATURES: Final = HAND_FEATURES + (CAMERA_POSE, INTRINSICS)
+RESULT_FEATURES: Final = HAND_FEATURES + (CAMERA_POSE, INTRINSICS, CAMERA_FLAGS)
 
 
 def _hand_values(hand: HandState) -> dict[str, np.ndarray]:
@@ -177,4 +184,8 @@ def frame_values(result: FrameResult, fill: float) -> tuple[dict[str, np.ndarray
     out[CAMERA_POSE] = result.camera_pose.matrix().reshape(-1)
     intrinsics = result.intrinsics
     out[INTRINSICS] = np.array([intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy])
+    raw = result.raw_camera_pose
+    corrected = raw is not None and not np.allclose(raw.matrix(), result.camera_pose.matrix(),
+                                                    atol=BA_CORRECTED_TOL)
+    out[CAMERA_FLAGS] = np.array([result.is_keyframe, corrected], dtype=np.float64)
     return out, reasons

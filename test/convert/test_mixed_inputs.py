@@ -11,6 +11,7 @@ from convert_builders import PERIOD_NS
 from infinihand_ros.convert.cli import EXIT_OK
 from infinihand_ros.convert.cli import EXIT_USAGE
 from infinihand_ros.convert.cli import main
+from infinihand_ros.convert.dataset_card import CARD_FILE
 from infinihand_ros.convert.lerobot_layout import CONVERSION_PATH
 from infinihand_ros.convert.provenance import files_sha256
 from infinihand_ros.data.lerobot_features import HAND_CONFIDENCE
@@ -19,6 +20,7 @@ from infinihand_ros.model.io.bundled import resolve_checkpoint
 import numpy as np
 import pyarrow.parquet as pq
 import pytest
+import yaml
 
 VIDEO = 'videos/observation.images.ego/chunk-000/file-{:03d}.mp4'
 DATA = 'data/chunk-000/file-{:03d}.parquet'
@@ -90,3 +92,26 @@ def test_video_size_flag_and_crop(tmp_path: Path) -> None:
     data = pq.read_table(output / DATA.format(0)).to_pydict()
     np.testing.assert_allclose(np.array(data[INTRINSICS])[0], [200.0, 200.0, 160.5, 90.5],
                                atol=1e-4)
+
+
+@pytest.mark.slow
+def test_card_is_written_and_follows_the_dataset(tmp_path: Path) -> None:
+    first = _bag(tmp_path / 'first', (160, 120), 4, PERIOD_NS, 4)
+    second = _bag(tmp_path / 'second', (160, 120), 3, PERIOD_NS, 5)
+    output = tmp_path / 'dataset'
+    assert _convert([first], output, tmp_path) == EXIT_OK
+    card = (output / CARD_FILE).read_text()
+    header = yaml.safe_load(card.split('---\n')[1])
+    assert header['license'] is None and header['task_categories'] == ['robotics']
+    assert 'LeRobot' in header['tags']
+    assert '1 episodes, 4 frames at 10 fps' in card
+    assert f'| `{INTRINSICS}` | float32 | [4] | px |' in card
+    assert 'From the card of the model `tiny_synthetic`' in card and 'Synthetic only' in card
+    # A card left stale (a run stopped between meta/ and the card) is rewritten on open.
+    (output / CARD_FILE).write_text('stale')
+    assert _convert([first], output, tmp_path) == EXIT_OK  # nothing to add
+    assert (output / CARD_FILE).read_text() == card
+    assert _convert([first, second], output, tmp_path) == EXIT_OK
+    card = (output / CARD_FILE).read_text()
+    assert '2 episodes, 7 frames at 10 fps' in card and str(second) in card
+    assert not list(output.glob(f'.{CARD_FILE}.*'))
