@@ -74,15 +74,18 @@ def main() -> None:
                                        stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
             time.sleep(kill_after_s)
             finished = process.poll() is not None
-            os.kill(process.pid, signal.SIGKILL)
+            if not finished:
+                os.kill(process.pid, signal.SIGKILL)
             process.wait()
             at_kill = _episodes(output)
             subprocess.run(_command(inputs, output, args.ba), check=True, capture_output=True)
-            same = dataset_content(output) == expected
-            identical += same
+            got = dataset_content(output)
+            differ = sorted(path for path in set(got) | set(expected)
+                            if got.get(path) != expected.get(path))
+            identical += not differ
             print(f'trial {trial}: SIGKILL after {kill_after_s:.1f} s '
                   f'({"already finished" if finished else f"{at_kill} episodes in"}), '
-                  f're-run identical: {same}')
+                  f're-run identical: {not differ}' + (f' (differ: {differ})' if differ else ''))
         print(f'{identical}/{args.trials} re-runs identical to the uninterrupted run')
 
 
