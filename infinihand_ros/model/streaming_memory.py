@@ -18,8 +18,9 @@ The window rule is LingBot-Map's: a keyframe is appended first, the window is ev
 the ``window - 1`` keyframes before it). A non-keyframe sees the ``window`` stored keyframes
 plus itself and is not stored. In one sentence: a frame attends to the memory as it stands right
 after its own turn (anchors + window + trajectory), plus itself when it is not stored. Inside a
-multi-frame block the same visibility is reproduced with masks, so a block gives the same
-result as its frames one by one. After a block the cached token count of each layer is
+multi-frame block the same visibility is reproduced by giving each frame's queries only the
+keys it sees (gathered, so a frame of a long block costs what it costs alone), so a block gives
+the same result as its frames one by one. After a block the cached token count of each layer is
 ``anchor_frames * P + min(keyframes, window) * P + special_tokens * min(evicted, cap)``.
 
 Storage does not grow with the stream: each layer owns one preallocated buffer laid out as
@@ -259,7 +260,7 @@ class KVMemory:
         self._plan: BlockPlan | None = None
         self._attended: list[bool] = []
         self._key_range = slice(0, 0)
-        self._frame_masks: list[torch.Tensor | None] = []
+        self._frame_keys: list[torch.Tensor | None] = []
         self.tokens_per_frame = 0
         self._reallocations = 0
 
@@ -296,10 +297,10 @@ class KVMemory:
         block_start = self._scratch.end - plan.num_frames * tokens_per_frame
         if plan.is_anchor:
             self._key_range = slice(block_start, self._anchors.slot(self._anchor_count).start)
-            self._frame_masks = []
+            self._frame_keys = []
         else:
             self._key_range = slice(block_start, self._cache_end())
-            self._frame_masks = self._block_masks(plan, device)
+            self._frame_keys = self._block_keys(plan, device)
         self._attended = [False] * self.num_layers
 
     def context(self, layer: int) -> _LayerContext:
@@ -318,14 +319,17 @@ class KVMemory:
                            torch.stack((key, value)))
         self._attended[layer] = True
         keys, values = data[0, ..., self._key_range, :], data[1, ..., self._key_range, :]
-        if all(mask is None for mask in self._frame_masks):
+        if all(visible is None for visible in self._frame_keys):
             return F.scaled_dot_product_attention(query, keys, values)
         per_frame = self.tokens_per_frame
         outputs = []
-        for frame, mask in enumerate(self._frame_masks):
+        for frame, visible in enumerate(self._frame_keys):
             rows = slice(frame * per_frame, (frame + 1) * per_frame)
-            outputs.append(F.scaled_dot_product_attention(query[..., rows, :], keys, values,
-                                                          attn_mask=mask))
+            frame_keys, frame_values = ((keys, values) if visible is None else
+                                        (keys.index_select(-2, visible),
+                                         values.index_select(-2, visible)))
+            outputs.append(F.scaled_dot_product_attention(query[..., rows, :], frame_keys,
+                                                          frame_values))
         return torch.cat(outputs, dim=-2)
 
     def commit(self) -> None:
@@ -353,7 +357,7 @@ class KVMemory:
     def abort(self) -> None:
         """Forget the current block without storing it (the memory stays as before ``begin``)."""
         self._plan = None
-        self._frame_masks = []
+        self._frame_keys = []
 
     # Layout and storage.
 
@@ -460,8 +464,8 @@ class KVMemory:
             copies.append(_Copy(frame_tokens(frame), self._window_slots.slot(window.put(order))))
         return copies
 
-    def _block_masks(self, plan: BlockPlan, device: torch.device) -> list[torch.Tensor | None]:
-        """Return per block frame the (1, L) key visibility (None: all visible).
+    def _block_keys(self, plan: BlockPlan, device: torch.device) -> list[torch.Tensor | None]:
+        """Return per block frame the indices of the keys it sees (None: all of them).
 
         This reproduces frame-by-frame streaming: frame j, after whose turn ``K_j`` keyframes
         are stored, sees a keyframe of order ``o`` in full when ``o >= K_j - window``, only its
@@ -497,4 +501,4 @@ class KVMemory:
                              device=device)
         block, window = frames.split((count * per_frame, frames.shape[1] - count * per_frame), 1)
         visible = torch.cat((block, anchors, window, trajectory), dim=1)
-        return [None if bool(row.all()) else row[None] for row in visible]
+        return [None if bool(row.all()) else row.nonzero().squeeze(1) for row in visible]

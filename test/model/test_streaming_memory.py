@@ -158,6 +158,29 @@ def test_frames_attended_per_step_for_window_w(monkeypatch) -> None:
     assert seen == [anchors] + keyframe_views + [non_keyframe_view]
 
 
+def test_a_block_frame_attends_over_only_the_keys_it_sees(monkeypatch) -> None:
+    """In one block each frame gets just its visible keys, as many as frame by frame, no mask."""
+    window, per_frame, anchor = 4, 10, 2
+    flags = [True] * 6 + [False]
+    seen = {'frames': [], 'block': []}
+    target = 'frames'
+
+    def spy(query, key, value, attn_mask=None):
+        assert attn_mask is None
+        seen[target].append(key.shape[-2])
+        return torch.zeros_like(query)
+
+    monkeypatch.setattr('infinihand_ros.model.streaming_memory.F.scaled_dot_product_attention',
+                        spy)
+    for target, blocks in (('frames', [[flag] for flag in flags]), ('block', [flags])):
+        memory = KVMemory(1, window, SPECIAL, max_trajectory_frames=100)
+        schedule = FrameSchedule(anchor)
+        _run_block(memory, schedule, [True] * anchor, per_frame, 1)
+        for block in blocks:
+            _run_block(memory, schedule, block, per_frame, 1)
+    assert seen['block'] == seen['frames']
+
+
 def test_gradients_flow_through_the_cache_across_blocks() -> None:
     """Training through two windows of one clip: writes never break backward."""
     memory = KVMemory(1, 2, SPECIAL, max_trajectory_frames=2)
