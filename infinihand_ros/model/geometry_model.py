@@ -2,7 +2,9 @@
 
 Attribute names (``aggregator``, ``camera_head``, ``depth_head``) mirror LingBot-Map so its
 checkpoint loads by identity; ``mask_head`` is ours (paper Sec. 3.2). The aggregator runs in
-bf16 autocast on CUDA (when configured); the heads run in float32.
+bf16 autocast on CUDA (when configured) and, when a call asks for ``cpu_bf16``, on the CPU (for
+CPUs with native bf16, ``cpu_bf16_supported``); the heads run in float32. float32 everywhere on
+the CPU is the reference path (the default).
 """
 
 from dataclasses import dataclass
@@ -21,6 +23,11 @@ import torch
 from torch import nn
 
 DEPTH_CHANNELS = 2  # depth, confidence
+
+
+def cpu_bf16_supported() -> bool:
+    """Return whether this CPU computes bf16 natively (AVX512-BF16 or AMX tiles)."""
+    return bool(torch.cpu._is_avx512_bf16_supported() or torch.cpu._is_amx_tile_supported())
 
 
 @dataclass(frozen=True)
@@ -73,7 +80,7 @@ class GeometryModel(nn.Module):
                          aggregator.num_special_tokens, memory.max_trajectory_frames))
 
     def forward(self, images: torch.Tensor, plan: BlockPlan, aggregator_memory: KVMemory,
-                camera_memory: KVMemory) -> GeometryOutput:
+                camera_memory: KVMemory, cpu_bf16: bool = False) -> GeometryOutput:
         """Run one block of frames.
 
         Args:
@@ -81,9 +88,13 @@ class GeometryModel(nn.Module):
             plan: the block's plan (see ``streaming_memory.FrameSchedule``).
             aggregator_memory: memory of the global blocks (from ``new_memories``).
             camera_memory: the camera head's causal memory (from ``new_memories``).
+            cpu_bf16: on the CPU, run the aggregator in bf16 autocast too (when the config's
+                ``autocast_bf16`` is set); False: the float32 reference path. Ask for it only
+                where ``cpu_bf16_supported()`` (elsewhere bf16 is emulated, slowly).
 
         """
-        autocast = images.device.type == 'cuda' and self.config.autocast_bf16
+        autocast = self.config.autocast_bf16 and (
+            images.device.type == 'cuda' or (images.device.type == 'cpu' and cpu_bf16))
         with torch.autocast(images.device.type, dtype=torch.bfloat16, enabled=autocast):
             aggregated = self.aggregator(images, plan, aggregator_memory)
         with torch.autocast(images.device.type, enabled=False):

@@ -65,14 +65,15 @@ class GeometryStream:
         """Return the (aggregator, camera head) memories, e.g. to inspect cached tokens."""
         return self.aggregator_memory, self.camera_memory
 
-    def step(self, images: torch.Tensor, keyframe: bool | Sequence[bool] = True
-             ) -> GeometryOutput:
+    def step(self, images: torch.Tensor, keyframe: bool | Sequence[bool] = True,
+             cpu_bf16: bool = False) -> GeometryOutput:
         """Process one or more frames and return their outputs.
 
         Args:
             images: (B, S, 3, H, W) float RGB in [0, 1] on the model's device, B >= 1; H and W
                 multiples of the patch size (the configured size is the one the weights expect).
             keyframe: one flag for all S frames, or one per frame.
+            cpu_bf16: bf16 aggregator on the CPU (``GeometryModel.forward``); False: float32.
 
         Raises:
             InputError: for a wrong shape or dtype, or a flag list of the wrong length.
@@ -81,11 +82,13 @@ class GeometryStream:
         flags = self._check(images, keyframe)
         remaining = self.schedule.anchors_remaining
         if 0 < remaining < len(flags):
-            head = self.step(images[:, :remaining], flags[:remaining])
-            return _concat_outputs(head, self.step(images[:, remaining:], flags[remaining:]))
+            head = self.step(images[:, :remaining], flags[:remaining], cpu_bf16)
+            return _concat_outputs(head, self.step(images[:, remaining:], flags[remaining:],
+                                                   cpu_bf16))
         plan = self.schedule.plan(flags)
         try:
-            output = self.model(images, plan, self.aggregator_memory, self.camera_memory)
+            output = self.model(images, plan, self.aggregator_memory, self.camera_memory,
+                                cpu_bf16)
             _check_finite(output)
         except BaseException:
             for memory in self.memories:

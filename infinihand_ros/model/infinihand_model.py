@@ -154,11 +154,15 @@ class InfiniHandModel(nn.Module):
     def run_geometry(self, images: torch.Tensor, stream: GeometryStream,
                      keyframe: bool | list[bool] = True, intrinsics: torch.Tensor | None = None,
                      intrinsics_known: torch.Tensor | None = None,
-                     detection: HandDetection | None = None
+                     detection: HandDetection | None = None, cpu_bf16: bool = False
                      ) -> tuple[GeometryOutput, torch.Tensor, torch.Tensor]:
-        """Return the geometry outputs, camera-to-world poses and the intrinsics for the hands."""
+        """Return the geometry outputs, camera-to-world poses and the intrinsics for the hands.
+
+        ``cpu_bf16`` runs the aggregator in bf16 on the CPU (``GeometryModel.forward``); the
+        default is the float32 reference path.
+        """
         detection = detection or self.hand_detection()
-        geometry = stream.step(images, keyframe)
+        geometry = stream.step(images, keyframe, cpu_bf16)
         height, width = images.shape[-2:]
         encoding = geometry.pose_encoding.double()
         encoding = torch.cat((encoding[..., :FOV_H],  # out of place: training backprops here

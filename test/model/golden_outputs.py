@@ -35,8 +35,12 @@ def golden_frames(height: int, width: int) -> torch.Tensor:
     return torch.as_tensor(np.stack(frames), dtype=torch.float32)[None]
 
 
-def compute_golden_outputs() -> dict[str, torch.Tensor]:
-    """Return the tensors the golden file holds (seed 0, tiny configs, one anchor block)."""
+def compute_golden_outputs(cpu_bf16: bool = False) -> dict[str, torch.Tensor]:
+    """Return the tensors the golden file holds (seed 0, tiny configs, one anchor block).
+
+    ``cpu_bf16`` runs the aggregator in bf16 (the engine's fast CPU path); the file holds the
+    float32 reference.
+    """
     geometry = load_geometry_config(named_config_path('tiny'))
     model = build_infinihand_model(geometry, load_hand_branch_config('tiny'), seed=0).eval()
     height, width = geometry.aggregator.image_height, geometry.aggregator.image_width
@@ -45,7 +49,9 @@ def compute_golden_outputs() -> dict[str, torch.Tensor]:
                                     [60.0, 60.0, 110.0, 140.0]]),
                       torch.tensor([0, 0, 1]), torch.tensor([0, 1, 1]))
     with torch.inference_mode():
-        out = model(images, model.new_stream(), True, boxes=boxes)
+        geometry, poses, used = model.run_geometry(images, model.new_stream(), True,
+                                                   cpu_bf16=cpu_bf16)
+        out = model.run_hands(images, geometry, poses, used, boxes)
     grid = (slice(None), slice(None), slice(None, None, MAP_STRIDE),
             slice(None, None, MAP_STRIDE))
     hands = out.hands
