@@ -29,6 +29,7 @@ import torch
 ENGINE_SECTION: Final = 'engine'
 MODES: Final = ('per_frame', 'windowed')
 CAMERA_MOTIONS: Final = ('estimate', 'static')
+CPU_PRECISIONS: Final = ('auto', 'fp32')
 
 
 def check_device(name: str, key: str = 'engine.device') -> None:
@@ -134,6 +135,10 @@ class EngineConfig:
         window: frames per window in windowed mode (the paper: 16).
         keyframe_interval: after the anchors, every this-many-th frame enters the memory.
         device: torch device ('cpu', 'cuda', 'cuda:1', ...), checked at load.
+        cpu_precision: on the CPU, 'auto' runs the aggregator in bf16 where the CPU computes
+            bf16 natively (AVX512-BF16 or AMX, checked at start-up; float32 elsewhere), 'fp32'
+            (the default here; ``config/engine.yaml`` says 'auto') is the float32 reference
+            path. CUDA follows the model's ``autocast_bf16``.
         model: the model and its weights.
         detection: hand detection thresholds and the FoV clamp.
         metric_scale: running metric-scale estimate from the hands.
@@ -150,6 +155,7 @@ class EngineConfig:
     window: int = 16
     keyframe_interval: int = 1
     device: str = 'cpu'
+    cpu_precision: str = 'fp32'
     model: ModelSelection = field(default_factory=ModelSelection)
     detection: DetectionConfig = field(default_factory=DetectionConfig)
     metric_scale: MetricScaleConfig = field(default_factory=MetricScaleConfig)
@@ -161,6 +167,9 @@ class EngineConfig:
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ConfigError(f'engine.mode must be one of {list(MODES)}, got {self.mode!r}')
+        if self.cpu_precision not in CPU_PRECISIONS:
+            raise ConfigError(f'engine.cpu_precision must be one of {list(CPU_PRECISIONS)}, '
+                              f'got {self.cpu_precision!r}')
         if self.camera_motion not in CAMERA_MOTIONS:
             raise ConfigError(f'engine.camera_motion must be one of {list(CAMERA_MOTIONS)}, '
                               f'got {self.camera_motion!r}')

@@ -56,6 +56,7 @@ from infinihand_ros.engine.pose_track import PoseTrack
 from infinihand_ros.engine.pose_track import TrackedPose
 from infinihand_ros.engine.timestamps import check_timestamp
 from infinihand_ros.engine.world_placement import place_in_world
+from infinihand_ros.model.geometry_model import cpu_bf16_supported
 from infinihand_ros.model.geometry_model import GeometryOutput
 from infinihand_ros.model.infinihand_model import CameraSpaceOutput
 import numpy as np
@@ -98,6 +99,8 @@ class StreamingEngine:
                                                     detection.peak_region,
                                                     detection.region_join_px)
         self._device = next(self.model.parameters()).device
+        self._cpu_bf16 = (self.config.cpu_precision == 'auto' and self._device.type == 'cpu'
+                          and cpu_bf16_supported())
         self._decoder = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_decode')
                          if self.config.mode == 'windowed' else None)
         self._guard = threading.Lock()
@@ -300,7 +303,7 @@ class StreamingEngine:
             with torch.inference_mode():
                 geometry, poses, used = self.model.run_geometry(
                     images, self._stream, [frame.keyframe for frame in frames], intrinsics,
-                    known, self._detection)
+                    known, self._detection, self._cpu_bf16)
         except ModelOutputError as exc:  # the block's frames were not added: forget them
             self._frames_pushed -= len(frames)
             self._last_stamp = self._accepted_stamp
