@@ -1,6 +1,8 @@
 """Benchmark scripts: bad arguments refused with one line; the error-source summary."""
 
 import importlib.util
+import json
+import math
 from pathlib import Path
 import subprocess
 import sys
@@ -46,3 +48,19 @@ def test_error_sources_summary_averages_sequences_and_frame_ranges() -> None:
     assert first == {'frames': '1-5', 'rotation_error_deg': pytest.approx(34.0 / 7),
                      'step_error_deg': pytest.approx(34.0 / 7), 'true_step_deg': 1.0}
     assert second['frames'] == '5-6' and second['rotation_error_deg'] == 7.0
+
+
+def test_gpu_check_runs_on_the_tiny_model_on_the_cpu(tmp_path: Path) -> None:
+    """benchmarks/gpu_check.py (the prepared GPU check) runs end to end in CPU mode."""
+    out = tmp_path / 'gpu_check.json'
+    run = subprocess.run([sys.executable, str(BENCHMARKS / 'gpu_check.py'), '--size', 'tiny',
+                          '--device', 'cpu', '--frames', '3', '--out', str(out)],
+                         capture_output=True, text=True, timeout=900)
+    assert run.returncode == 0, run.stderr
+    figures = json.loads(out.read_text())
+    assert set(figures['stream']) == {'per_frame', 'windowed'}
+    for stream in (*figures['stream'].values(), figures['converted']):
+        assert stream['frames'] == 3 and stream['fps'] > 0 and stream['peak_memory_mib'] > 0
+    assert figures['converted']['matched_tensors'] > 0
+    step = figures['train_step']
+    assert step['steps'] == 1 and step['step_seconds'] > 0 and math.isfinite(step['loss'])
