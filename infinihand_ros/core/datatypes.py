@@ -236,6 +236,8 @@ class FrameResult:
             corrected ``camera_pose``; None otherwise.
         pose_version: the engine's pose-track version ``camera_pose`` was computed with (it
             changes whenever the metric scale or BA corrections change; 0 for the first).
+        hand_source: where the hands came from ('infinihand': the paper's hand branch;
+            'mediapipe': MediaPipe Hands lifted to MANO).
 
     """
 
@@ -249,6 +251,7 @@ class FrameResult:
     metric_scale: float = 1.0
     raw_camera_pose: CameraPose | None = None
     pose_version: int = 0
+    hand_source: str = 'infinihand'
 
     def __post_init__(self) -> None:
         sides = [hand.side for hand in self.hands]

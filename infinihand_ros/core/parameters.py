@@ -74,22 +74,29 @@ def check_choices(config: Any, prefix: str = '') -> None:
 def parameter_table(config_type: type, prefix: str = '') -> dict[str, tuple[Any, ParameterSpec]]:
     """Return every parameter of the tree as dotted name -> (default, spec), in field order.
 
+    Defaults are those of ``config_type()``: a sub-tree's defaults are its field's default
+    factory's (which may differ from the sub-tree class's own).
+
     Raises:
         TypeError: for a field that is neither a parameter nor a nested dataclass (a tree
             that does not say what one of its settings means).
 
     """
-    defaults = config_type()
+    return _table(config_type(), prefix)
+
+
+def _table(defaults: Any, prefix: str) -> dict[str, tuple[Any, ParameterSpec]]:
+    """Return the parameters of a default tree instance (see ``parameter_table``)."""
     table: dict[str, tuple[Any, ParameterSpec]] = {}
-    for field in dataclasses.fields(config_type):
+    for field in dataclasses.fields(defaults):
         name = f'{prefix}{field.name}'
         value = getattr(defaults, field.name)
         if dataclasses.is_dataclass(value):
-            table.update(parameter_table(type(value), f'{name}.'))
+            table.update(_table(value, f'{name}.'))
         elif _SPEC in field.metadata:
             table[name] = (value, field.metadata[_SPEC])
         else:
-            raise TypeError(f'{config_type.__name__}.{field.name} has no parameter spec')
+            raise TypeError(f'{type(defaults).__name__}.{field.name} has no parameter spec')
     return table
 
 

@@ -13,6 +13,12 @@ noise; the small priors pick one solution where joints do not determine it (a fi
 about its own bone). Orientation and translation start from a rigid (Kabsch) fit of the rest
 palm to the keypoints, then L-BFGS refines everything. One shape per sequence by default (one
 person per hand track).
+
+``inverse_kinematics`` is the fast start for live use: the palm's rigid fit gives the wrist
+orientation, then, level by level down each finger, every joint gets the smallest rotation that
+turns its rest bone (as its parent now holds it) onto the keypoints' bone. It needs no
+iteration (well under a millisecond per frame); ``fit_mano(..., initial=...)`` then refines
+shape and twist in a few L-BFGS steps.
 """
 
 from dataclasses import dataclass
@@ -20,11 +26,16 @@ import time
 from typing import Final
 
 from infinihand_ros.core.config import require_at_least
+from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import NUM_BETAS
 from infinihand_ros.core.hand_conventions import NUM_HAND_POSE_JOINTS
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
+from infinihand_ros.core.hand_conventions import OPENPOSE_TO_MANO
 from infinihand_ros.mano.base import HandModel
+from infinihand_ros.mano.kinematics import CHAIN_LEVELS
+from infinihand_ros.mano.kinematics import CHAIN_TIPS
+from infinihand_ros.mano.kinematics import PARENTS_WITH_TIPS
 import numpy as np
 import roma
 import torch
@@ -228,18 +239,32 @@ def _fill_gaps(params: _Parameters, fitted: _Parameters, known: np.ndarray) -> N
 
 
 def _initial_parameters(model: HandModel, points_mm: torch.Tensor, mask: torch.Tensor,
-                        shared_betas: bool) -> _Parameters:
-    """Rigid palm alignment, flat hand and mean shape."""
+                        shared_betas: bool, initial: ManoParams | None = None) -> _Parameters:
+    """Rigid palm alignment, flat hand and mean shape; or ``initial`` placed on the wrist."""
     frames = points_mm.shape[0]
     with torch.no_grad():
         orient, transl = _rigid_init(model, points_mm / _M_TO_MM, mask)
-    return _Parameters(orient, points_mm.new_zeros(frames, NUM_HAND_POSE_JOINTS, 3),
-                       points_mm.new_zeros(1 if shared_betas else frames, NUM_BETAS),
-                       transl * _M_TO_MM)
+    if initial is None:
+        return _Parameters(orient, points_mm.new_zeros(frames, NUM_HAND_POSE_JOINTS, 3),
+                           points_mm.new_zeros(1 if shared_betas else frames, NUM_BETAS),
+                           transl * _M_TO_MM)
+
+    def tiled(value: np.ndarray, count: int) -> torch.Tensor:
+        tensor = torch.as_tensor(value, dtype=points_mm.dtype, device=points_mm.device)
+        return tensor.expand(count, *tensor.shape).clone()
+
+    params = _Parameters(tiled(initial.global_orient, frames), tiled(initial.hand_pose, frames),
+                         tiled(initial.betas, 1 if shared_betas else frames),
+                         points_mm.new_zeros(frames, 3))
+    with torch.no_grad():  # the translation that puts the started hand's wrist on the keypoints
+        wrist = _joints_mm(model, params)[:, 0]
+        params.transl_mm = points_mm[:, 0] - wrist
+    return params
 
 
 def fit_mano(model: HandModel, keypoints: np.ndarray, valid: np.ndarray | None = None,
-             config: ManoFitConfig = ManoFitConfig()) -> ManoFitResult:
+             config: ManoFitConfig = ManoFitConfig(), initial: ManoParams | None = None
+             ) -> ManoFitResult:
     """Fit the hand model to a track of 3D keypoints.
 
     The fit runs in the model's dtype and device (float64 gives the most exact fits). When some
@@ -251,6 +276,9 @@ def fit_mano(model: HandModel, keypoints: np.ndarray, valid: np.ndarray | None =
         keypoints: (T, 21, 3) joints in metres, OpenPose order, any frame.
         valid: (T, 21) bool, which joints to fit (default: every finite one).
         config: weights and iteration limits.
+        initial: parameters to start every frame from (a warm start, e.g. the previous frame's
+            fit of the same hand: orientation, pose and shape; the translation comes from the
+            rigid palm fit); None: the rigid palm fit, flat hand, mean shape.
 
     Returns:
         The fitted parameters, joints and per-frame residuals.
@@ -265,7 +293,7 @@ def fit_mano(model: HandModel, keypoints: np.ndarray, valid: np.ndarray | None =
     points = torch.as_tensor(points_np * _M_TO_MM, dtype=reference.dtype, device=reference.device)
     mask = torch.as_tensor(valid_np, device=reference.device)
     weight = mask.to(points.dtype)
-    params = _initial_parameters(model, points, mask, config.shared_betas)
+    params = _initial_parameters(model, points, mask, config.shared_betas, initial)
     known = np.flatnonzero(valid_np.any(axis=1))
     iterations = 0
     if 0 < len(known) < len(points):
@@ -291,3 +319,64 @@ def fit_mano(model: HandModel, keypoints: np.ndarray, valid: np.ndarray | None =
         transl=numpy(params.transl_mm) / _M_TO_MM, joints=joints / _M_TO_MM,
         joint_errors_mm=errors, frame_errors_mm=frame_errors, iterations=iterations,
         seconds=time.perf_counter() - start)
+
+
+def _swing(source: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
+    """Smallest rotations (..., 3, 3) turning directions ``source`` onto ``target`` (..., 3)."""
+    a = source / source.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+    b = target / target.norm(dim=-1, keepdim=True).clamp_min(1e-12)
+    axis = torch.cross(a, b, dim=-1)
+    angle = torch.atan2(axis.norm(dim=-1), (a * b).sum(dim=-1))
+    rotvec = axis / axis.norm(dim=-1, keepdim=True).clamp_min(1e-12) * angle[..., None]
+    return roma.rotvec_to_rotmat(rotvec)
+
+
+def inverse_kinematics(model: HandModel, keypoints: np.ndarray,
+                       betas: np.ndarray | None = None) -> ManoParams:
+    """Return MANO parameters whose joints follow one frame's keypoints, without iterating.
+
+    The wrist orientation and translation are the rigid fit of the rest palm; each finger joint
+    then takes the smallest rotation that turns its rest bone onto the keypoints' bone (no
+    twist about the bone). Bone lengths stay the model's for ``betas``.
+
+    Args:
+        model: hand model of the keypoints' side.
+        keypoints: (21, 3) joints in metres, OpenPose order, all finite.
+        betas: (10,) shape to use (default: the mean shape).
+
+    Raises:
+        InputError: for keypoints of the wrong shape or with non-finite values.
+
+    """
+    points_np, valid = _check_inputs(np.asarray(keypoints)[None], None)
+    if not valid.all():
+        raise InputError('inverse_kinematics: every keypoint must be finite')
+    reference = next(model.buffers())
+    points = torch.as_tensor(points_np[0], dtype=reference.dtype, device=reference.device)
+    shape = torch.zeros(1, NUM_BETAS, dtype=points.dtype) if betas is None else \
+        torch.as_tensor(np.asarray(betas)[None], dtype=points.dtype)
+    with torch.no_grad():
+        orient, _ = _rigid_init(model, points[None], torch.ones(1, NUM_JOINTS, dtype=torch.bool))
+        zeros = points.new_zeros
+        rest = model(zeros(1, 3), zeros(1, NUM_HAND_POSE_JOINTS, 3), shape,
+                     zeros(1, 3)).joints[0][list(OPENPOSE_TO_MANO)]
+        target = points[list(OPENPOSE_TO_MANO)]
+        rotations = points.new_zeros(len(PARENTS_WITH_TIPS), 3, 3)
+        rotations[0] = roma.rotvec_to_rotmat(orient[0])
+        local = points.new_zeros(NUM_HAND_POSE_JOINTS + 1, 3, 3)
+        local[0] = rotations[0]
+        levels = list(CHAIN_LEVELS) + [CHAIN_TIPS]
+        for joints, children in zip(levels[:-1], levels[1:]):
+            joints, children = list(joints), list(children)
+            parents = [PARENTS_WITH_TIPS[j] for j in joints]
+            held = torch.einsum('kij,kj->ki', rotations[parents], rest[children] - rest[joints])
+            swing = _swing(held, target[children] - target[joints])
+            rotations[joints] = swing @ rotations[parents]
+            local[joints] = rotations[parents].transpose(-1, -2) @ rotations[joints]
+        pose = roma.rotmat_to_rotvec(local[1:])
+        params = _Parameters(orient, pose[None], shape, zeros(1, 3))
+        wrist = _joints_mm(model, params)[0, 0] / _M_TO_MM
+    numpy = {name: value.detach().cpu().numpy().astype(np.float64)
+             for name, value in (('orient', orient[0]), ('pose', pose), ('betas', shape[0]))}
+    return ManoParams(numpy['orient'], numpy['pose'], numpy['betas'],
+                      (points[0] - wrist).cpu().numpy().astype(np.float64))

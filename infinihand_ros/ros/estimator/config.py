@@ -5,8 +5,10 @@ every parameter: default, description, range and choices (``core.parameters``); 
 declares them from it, and ``config/estimator.yaml`` is generated from it
 (``python -m infinihand_ros.ros.params_files --write``; a test fails when they differ).
 ``estimator_config_from_parameters`` builds and checks the tree from flat parameter values,
-raising ``ConfigError`` that names the parameter. ``camera.motion``, ``identity.*``,
-``shape.*`` and ``smoothing.*`` are settings of the engine (``engine_setup.py``).
+raising ``ConfigError`` that names the parameter. ``camera.motion``, ``hands.*``,
+``identity.*``, ``shape.*`` and ``smoothing.*`` are settings of the engine
+(``engine_setup.py``). The node's hand source is MediaPipe by default: it runs on real camera
+images, and the bundled InfiniHand weights have seen only synthetic ones.
 """
 
 from dataclasses import dataclass
@@ -22,6 +24,8 @@ from infinihand_ros.core.parameters import parameter
 from infinihand_ros.core.parameters import unflatten
 from infinihand_ros.engine.config import CAMERA_MOTIONS
 from infinihand_ros.engine.config import MODES
+from infinihand_ros.engine.hands.config import HandsConfig
+from infinihand_ros.engine.hands.config import MEDIAPIPE
 from infinihand_ros.engine.output.config import IdentityConfig
 from infinihand_ros.engine.output.config import ShapeConfig
 from infinihand_ros.engine.output.config import SmoothingConfig
@@ -162,6 +166,7 @@ class EstimatorConfig:
     frames: FrameIds = nested(FrameIds)
     camera: CameraSettings = nested(CameraSettings)
     outputs: OutputSwitches = nested(OutputSwitches)
+    hands: HandsConfig = nested(lambda: HandsConfig(source=MEDIAPIPE))
     smoothing: SmoothingConfig = nested(SmoothingConfig)
     identity: IdentityConfig = nested(IdentityConfig)
     shape: ShapeConfig = nested(ShapeConfig)

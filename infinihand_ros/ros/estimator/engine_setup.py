@@ -2,8 +2,9 @@
 
 The YAML is ``config/engine.yaml`` unless ``engine.config`` names another. The ``engine.*``
 parameters select the mode, device, checkpoint and BA; ``camera.motion`` is the engine's
-``camera_motion`` and ``identity.*``, ``shape.*`` and ``smoothing.*`` are its output stage
-(they replace the file's ``output`` section). Errors name the parameter.
+``camera_motion``, ``hands.*`` its hand source (they replace the file's ``hands`` section) and
+``identity.*``, ``shape.*`` and ``smoothing.*`` its output stage (they replace the file's
+``output`` section). Errors name the parameter.
 """
 
 from dataclasses import replace
@@ -50,4 +51,4 @@ def engine_config_for(config: EstimatorConfig) -> EngineConfig:
     output = OutputConfig(config.identity, config.shape, config.smoothing)
     return replace(base, mode=selection.mode, keyframe_interval=selection.keyframe_interval,
                    device=selection.device, model=model, bundle_adjustment=ba,
-                   camera_motion=config.camera.motion, output=output)
+                   camera_motion=config.camera.motion, output=output, hands=config.hands)

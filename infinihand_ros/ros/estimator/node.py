@@ -109,9 +109,10 @@ class EstimatorNode(Node):
                                         daemon=True)
         self._worker.start()
         self.get_logger().info(
-            f'ready: engine {engine.config.mode} on {engine.config.device}, camera motion '
-            f'{self.config.camera.motion}, smoothing {self.config.smoothing.mode}, bundle '
-            f'adjustment {self.config.engine.bundle_adjustment}')
+            f'ready: engine {engine.config.mode} on {engine.config.device}, hand source '
+            f'{self.config.hands.source}, camera motion {self.config.camera.motion}, smoothing '
+            f'{self.config.smoothing.mode}, bundle adjustment '
+            f'{self.config.engine.bundle_adjustment}')
 
     def close(self) -> None:
         """Stop the inference thread and close the engine (call before ``destroy_node``)."""

@@ -1,0 +1,52 @@
+"""Settings of the engine's hand source (``engine.hands``; the node's ``hands.*`` parameters)."""
+
+from dataclasses import dataclass
+from typing import Final
+
+from infinihand_ros.core.config import require_at_least
+from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.core.parameters import check_choices
+from infinihand_ros.core.parameters import parameter
+
+INFINIHAND: Final = 'infinihand'
+MEDIAPIPE: Final = 'mediapipe'
+HAND_SOURCES: Final = (INFINIHAND, MEDIAPIPE)
+
+
+@dataclass(frozen=True)
+class HandsConfig:
+    """Where the engine's camera-space hands come from, and which of them count."""
+
+    source: str = parameter(INFINIHAND, "Hand source: infinihand (the paper's hand branch; the "
+                            'bundled weights have seen only synthetic images); mediapipe '
+                            '(MediaPipe Hands, trained on real photos, lifted to MANO).',
+                            choices=HAND_SOURCES)
+    min_confidence: float = parameter(0.5, "A hand is output only when its source's confidence "
+                                      'is at least this.', 0.0, 1.0)
+    mirrored: bool = parameter(False, 'The images are mirrored (a selfie view); handedness is '
+                               'read accordingly.')
+    verify: bool = parameter(False, 'With the infinihand source: keep a hand only where '
+                             'MediaPipe finds one of the same side at the same place (a guard '
+                             'against images unlike the training data).')
+    verify_min_iou: float = parameter(0.3, 'With verify: the least box overlap (IoU) that counts '
+                                      'as the same place.', 0.0, 1.0)
+    model_complexity: int = parameter(1, 'MediaPipe landmark model: 0 lite (faster), 1 full.',
+                                      0, 1)
+    min_detection_confidence: float = parameter(0.5, 'MediaPipe palm detections scoring lower '
+                                                'are dropped.', 0.0, 1.0)
+    min_tracking_confidence: float = parameter(0.5, 'MediaPipe re-detects a tracked hand whose '
+                                               'landmark score falls below this.', 0.0, 1.0)
+    refine_iterations: int = parameter(0, 'L-BFGS steps refining the MANO fit of each MediaPipe '
+                                       'hand after the closed-form start (0: none).', 0, 1000)
+
+    def __post_init__(self) -> None:
+        check_choices(self, 'hands.')
+        for name in ('min_confidence', 'verify_min_iou', 'min_detection_confidence',
+                     'min_tracking_confidence'):
+            value = getattr(self, name)
+            if not 0.0 <= value <= 1.0:
+                raise ConfigError(f'hands.{name}: must be in [0, 1], got {value}')
+        if self.model_complexity not in (0, 1):
+            raise ConfigError(f'hands.model_complexity: must be 0 or 1, got '
+                              f'{self.model_complexity}')
+        require_at_least('hands', 0, refine_iterations=self.refine_iterations)

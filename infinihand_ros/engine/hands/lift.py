@@ -1,0 +1,157 @@
+"""2D landmarks and metric hand-relative joints lifted to a camera-space MANO hand.
+
+The real-image hand source (``mediapipe_source.py``) gives, per hand, 21 pixel landmarks and
+21 metric joints relative to the hand (axes along the camera's). ``lift_hand`` turns them into
+the hand the paper's branch produces, in three steps:
+
+1. MANO pose and orientation by the project's fitting (``data/mano_fit.py``): the closed-form
+   ``inverse_kinematics`` (bone directions; bone lengths are the hand model's for the hand's
+   betas, so one person keeps one shape), optionally refined by ``fit_mano`` warm-started
+   there;
+2. the root depth ``t_z`` and lateral translation: for each candidate depth the paper's eq. 5
+   least-squares projection (``model/hand/lsp.py``) gives ``(t_x, t_y)``; the depth minimising
+   the mean pixel error is found by a grid search refined twice (the hand's metric size fixes
+   it);
+3. a ``HandState`` in camera space: MANO parameters with that translation, joints, the
+   landmarks as 2D joints, the landmark box, and the source's confidence.
+"""
+
+from dataclasses import dataclass
+from typing import Final
+
+from infinihand_ros.core.datatypes import HandState
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.datatypes import ManoParams
+from infinihand_ros.data.mano_fit import fit_mano
+from infinihand_ros.data.mano_fit import inverse_kinematics
+from infinihand_ros.data.mano_fit import ManoFitConfig
+from infinihand_ros.mano.base import HandModel
+from infinihand_ros.model.hand.lsp import solve_lateral_translation
+import numpy as np
+import torch
+
+#: Root depths searched, metres (hands from touching the lens to across a room).
+DEPTH_RANGE_M: Final = (0.05, 5.0)
+#: Passes turning the bones towards the landmarks' viewing rays (each kept only if it lowers
+#: the pixel error): MediaPipe's metric joints give the pose, its 2D landmarks refine it.
+RAY_PASSES: Final = 2
+#: Depths per grid of the root-depth search, and finer grids after the first.
+DEPTH_GRID: Final = 48
+DEPTH_REFINEMENTS: Final = 2
+
+
+@dataclass(frozen=True)
+class LiftedHand:
+    """A lifted hand and how well it matches its landmarks.
+
+    Attributes:
+        hand: the camera-space hand.
+        reprojection_px: mean distance of its projected joints to the landmarks, pixels.
+        box_size_px: the landmark box's larger side, pixels.
+
+    """
+
+    hand: HandState
+    reprojection_px: float
+    box_size_px: float
+
+
+def place_by_projection(joints_rel: np.ndarray, landmarks_px: np.ndarray,
+                        intrinsics: Intrinsics) -> tuple[np.ndarray, float]:
+    """Return the translation (3,) putting hand-relative joints on their landmarks, and the error.
+
+    For each root depth eq. 5 gives the lateral translation in closed form; the depth is the
+    one with the smallest mean pixel error, searched on a log-spaced grid and refined on finer
+    grids around the best (each grid one batched eq. 5 solve).
+
+    Args:
+        joints_rel: (21, 3) joints without translation, camera axes, metres.
+        landmarks_px: (21, 2) pixels.
+        intrinsics: the camera's.
+
+    """
+    matrix = torch.as_tensor(intrinsics.matrix(), dtype=torch.float64)
+    joints = torch.as_tensor(joints_rel, dtype=torch.float64)
+    pixels = torch.as_tensor(landmarks_px, dtype=torch.float64)
+    low, high = np.log(DEPTH_RANGE_M[0]), np.log(DEPTH_RANGE_M[1])
+    depths = torch.exp(torch.linspace(low, high, DEPTH_GRID, dtype=torch.float64))
+    for _ in range(DEPTH_REFINEMENTS + 1):
+        count = len(depths)
+        lateral = solve_lateral_translation(joints.expand(count, -1, -1),
+                                            pixels.expand(count, -1, -1), depths,
+                                            matrix.expand(count, -1, -1))
+        shifts = torch.cat([lateral, depths[:, None]], dim=1)
+        placed = joints[None] + shifts[:, None]
+        z = placed[..., 2].clamp_min(1e-9)
+        projected = torch.stack([matrix[0, 0] * placed[..., 0] / z + matrix[0, 2],
+                                 matrix[1, 1] * placed[..., 1] / z + matrix[1, 2]], dim=-1)
+        errors = (projected - pixels).norm(dim=-1).mean(dim=-1)
+        best = int(errors.argmin())
+        step = (depths[min(best + 1, count - 1)] - depths[max(best - 1, 0)]) / 2
+        depths = torch.linspace(float(depths[best] - step), float(depths[best] + step),
+                                DEPTH_GRID, dtype=torch.float64).clamp_min(DEPTH_RANGE_M[0])
+    return shifts[best].numpy(), float(errors[best])
+
+
+def lift_hand(side: int, landmarks_px: np.ndarray, joints_metric: np.ndarray,
+              confidence: float, intrinsics: Intrinsics, model: HandModel,
+              previous: ManoParams | None = None, refine_iterations: int = 0) -> LiftedHand:
+    """Return the camera-space MANO hand of one detection.
+
+    Args:
+        side: 0 left, 1 right (our convention).
+        landmarks_px: (21, 2) landmarks in the image of ``intrinsics``, OpenPose order.
+        joints_metric: (21, 3) metric hand-relative joints, camera axes, OpenPose order.
+        confidence: the source's score in [0, 1].
+        intrinsics: the intrinsics of the image (given, fallback or predicted).
+        model: the hand model of ``side``.
+        previous: the same hand's parameters in the previous frame (its shape is kept and,
+            with ``refine_iterations``, the fit starts there).
+        refine_iterations: L-BFGS steps of ``fit_mano`` after the closed-form start (0: none).
+
+    """
+    betas = None if previous is None else previous.betas
+    params = inverse_kinematics(model, joints_metric, betas)
+    if refine_iterations > 0:
+        start = params if previous is None else ManoParams(
+            params.global_orient, params.hand_pose, previous.betas, params.transl)
+        fitted = fit_mano(model, joints_metric[None],
+                          config=ManoFitConfig(iterations=refine_iterations), initial=start)
+        params = ManoParams(fitted.global_orient[0], fitted.hand_pose[0], fitted.betas[0],
+                            fitted.transl[0])
+    relative = _joints(model, params) - params.transl
+    shift, error_px = place_by_projection(relative, landmarks_px, intrinsics)
+    for _ in range(RAY_PASSES):  # bones towards the landmarks' rays at the depths found
+        rays = _back_project(landmarks_px, (relative + shift)[:, 2], intrinsics)
+        candidate = inverse_kinematics(model, rays, params.betas)
+        moved = _joints(model, candidate) - candidate.transl
+        moved_shift, moved_error = place_by_projection(moved, landmarks_px, intrinsics)
+        if moved_error >= error_px:
+            break
+        params, relative, shift, error_px = candidate, moved, moved_shift, moved_error
+    mano = ManoParams(params.global_orient, params.hand_pose, params.betas, shift)
+    low, high = landmarks_px.min(axis=0), landmarks_px.max(axis=0)
+    hand = HandState(side, mano, relative + shift, np.asarray(landmarks_px, dtype=np.float64),
+                     np.concatenate([low, high]), float(np.clip(confidence, 0.0, 1.0)))
+    return LiftedHand(hand, error_px, float(np.max(high - low)))
+
+
+def _back_project(pixels: np.ndarray, depths: np.ndarray, intrinsics: Intrinsics) -> np.ndarray:
+    """Return (21, 3) camera-frame points on the pixels' rays at the given depths."""
+    x = (pixels[:, 0] - intrinsics.cx) / intrinsics.fx
+    y = (pixels[:, 1] - intrinsics.cy) / intrinsics.fy
+    return np.stack([x * depths, y * depths, depths], axis=1)
+
+
+def _joints(model: HandModel, params: ManoParams) -> np.ndarray:
+    """Return the model's (21, 3) joints for ``params``."""
+    reference = next(model.buffers())
+
+    def batch(value: np.ndarray) -> torch.Tensor:
+        return torch.as_tensor(np.asarray(value)[None], dtype=reference.dtype,
+                               device=reference.device)
+
+    with torch.no_grad():
+        out = model(batch(params.global_orient), batch(params.hand_pose), batch(params.betas),
+                    batch(params.transl))
+    return out.joints[0].detach().cpu().numpy().astype(np.float64)

