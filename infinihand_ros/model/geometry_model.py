@@ -39,7 +39,8 @@ class GeometryOutput:
         pose_encoding_iterations: the camera head's encodings of every refinement pass.
         depth: (B, S, H, W) depth along the camera z axis, model units (no metric scale).
         depth_conf: (B, S, H, W) confidence >= 1.
-        hand_masks: (B, S, 2, H, W) left/right hand probabilities in [0, 1].
+        hand_masks: (B, S, 2, H, W) left/right hand probabilities in [0, 1], or None when
+            the call skipped the mask head (``masks=False``: hands found outside the model).
         patch_features: (B, S, 2C, Hp, Wp) the last selected aggregator layer's patch tokens
             (frame and global outputs concatenated) on the patch grid; pixel (u, v) lies in
             cell (v // patch_size, u // patch_size). This is what the hand branch crops.
@@ -51,7 +52,7 @@ class GeometryOutput:
     pose_encoding_iterations: tuple[torch.Tensor, ...]
     depth: torch.Tensor
     depth_conf: torch.Tensor
-    hand_masks: torch.Tensor
+    hand_masks: torch.Tensor | None
     patch_features: torch.Tensor
     patch_size: int
 
@@ -80,7 +81,8 @@ class GeometryModel(nn.Module):
                          aggregator.num_special_tokens, memory.max_trajectory_frames))
 
     def forward(self, images: torch.Tensor, plan: BlockPlan, aggregator_memory: KVMemory,
-                camera_memory: KVMemory, cpu_bf16: bool = False) -> GeometryOutput:
+                camera_memory: KVMemory, cpu_bf16: bool = False,
+                masks: bool = True) -> GeometryOutput:
         """Run one block of frames.
 
         Args:
@@ -91,6 +93,8 @@ class GeometryModel(nn.Module):
             cpu_bf16: on the CPU, run the aggregator in bf16 autocast too (when the config's
                 ``autocast_bf16`` is set); False: the float32 reference path. Ask for it only
                 where ``cpu_bf16_supported()`` (elsewhere bf16 is emulated, slowly).
+            masks: run the mask head; False skips it (``hand_masks`` is None), for callers
+                whose hands come from elsewhere.
 
         """
         autocast = self.config.autocast_bf16 and (
@@ -103,9 +107,10 @@ class GeometryModel(nn.Module):
             image_size = tuple(images.shape[-2:])
             depth, depth_conf = activate_depth(
                 self.depth_head(layers, aggregated.patch_start, aggregated.grid, image_size))
-            masks = activate_masks(
-                self.mask_head(layers, aggregated.patch_start, aggregated.grid, image_size))
+            hand_masks = (activate_masks(self.mask_head(layers, aggregated.patch_start,
+                                                        aggregated.grid, image_size))
+                          if masks else None)
         patches = layers[-1][:, :, aggregated.patch_start:]
         features = patches.transpose(2, 3).unflatten(-1, aggregated.grid)
-        return GeometryOutput(encodings[-1], tuple(encodings), depth, depth_conf, masks,
+        return GeometryOutput(encodings[-1], tuple(encodings), depth, depth_conf, hand_masks,
                               features, self.config.aggregator.patch_size)

@@ -27,7 +27,9 @@ def _concat_outputs(first: GeometryOutput, second: GeometryOutput) -> GeometryOu
     values = {}
     for item in fields(GeometryOutput):
         a, b = getattr(first, item.name), getattr(second, item.name)
-        if isinstance(a, torch.Tensor):
+        if a is None:
+            values[item.name] = None
+        elif isinstance(a, torch.Tensor):
             values[item.name] = torch.cat((a, b), dim=1)
         elif isinstance(a, tuple):
             values[item.name] = tuple(torch.cat(pair, dim=1) for pair in zip(a, b))
@@ -39,7 +41,8 @@ def _concat_outputs(first: GeometryOutput, second: GeometryOutput) -> GeometryOu
 def _check_finite(output: GeometryOutput) -> None:
     """Raise ModelOutputError naming the first output with NaN or infinite values."""
     for name in ('pose_encoding', 'depth', 'depth_conf', 'hand_masks', 'patch_features'):
-        if not bool(torch.isfinite(getattr(output, name)).all()):
+        value = getattr(output, name)
+        if value is not None and not bool(torch.isfinite(value).all()):
             raise ModelOutputError(f'geometry branch: its {name} output is not finite; the '
                                    'weights are broken (check the checkpoint), the frame was '
                                    'not added to the stream')
@@ -66,7 +69,7 @@ class GeometryStream:
         return self.aggregator_memory, self.camera_memory
 
     def step(self, images: torch.Tensor, keyframe: bool | Sequence[bool] = True,
-             cpu_bf16: bool = False) -> GeometryOutput:
+             cpu_bf16: bool = False, masks: bool = True) -> GeometryOutput:
         """Process one or more frames and return their outputs.
 
         Args:
@@ -74,6 +77,7 @@ class GeometryStream:
                 multiples of the patch size (the configured size is the one the weights expect).
             keyframe: one flag for all S frames, or one per frame.
             cpu_bf16: bf16 aggregator on the CPU (``GeometryModel.forward``); False: float32.
+            masks: run the mask head (False: ``hand_masks`` is None).
 
         Raises:
             InputError: for a wrong shape or dtype, or a flag list of the wrong length.
@@ -82,13 +86,13 @@ class GeometryStream:
         flags = self._check(images, keyframe)
         remaining = self.schedule.anchors_remaining
         if 0 < remaining < len(flags):
-            head = self.step(images[:, :remaining], flags[:remaining], cpu_bf16)
+            head = self.step(images[:, :remaining], flags[:remaining], cpu_bf16, masks)
             return _concat_outputs(head, self.step(images[:, remaining:], flags[remaining:],
-                                                   cpu_bf16))
+                                                   cpu_bf16, masks))
         plan = self.schedule.plan(flags)
         try:
             output = self.model(images, plan, self.aggregator_memory, self.camera_memory,
-                                cpu_bf16)
+                                cpu_bf16, masks)
             _check_finite(output)
         except BaseException:
             for memory in self.memories:

@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Final
 
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.core.errors import InputError
 from infinihand_ros.mano.base import HandModel
 from infinihand_ros.model.config import GeometryConfig
 from infinihand_ros.model.config import load_geometry_config
@@ -154,15 +155,17 @@ class InfiniHandModel(nn.Module):
     def run_geometry(self, images: torch.Tensor, stream: GeometryStream,
                      keyframe: bool | list[bool] = True, intrinsics: torch.Tensor | None = None,
                      intrinsics_known: torch.Tensor | None = None,
-                     detection: HandDetection | None = None, cpu_bf16: bool = False
+                     detection: HandDetection | None = None, cpu_bf16: bool = False,
+                     masks: bool = True
                      ) -> tuple[GeometryOutput, torch.Tensor, torch.Tensor]:
         """Return the geometry outputs, camera-to-world poses and the intrinsics for the hands.
 
         ``cpu_bf16`` runs the aggregator in bf16 on the CPU (``GeometryModel.forward``); the
-        default is the float32 reference path.
+        default is the float32 reference path. ``masks=False`` skips the mask head (for hands
+        found outside the model; ``run_hands`` then needs given boxes).
         """
         detection = detection or self.hand_detection()
-        geometry = stream.step(images, keyframe, cpu_bf16)
+        geometry = stream.step(images, keyframe, cpu_bf16, masks)
         height, width = images.shape[-2:]
         encoding = geometry.pose_encoding.double()
         encoding = torch.cat((encoding[..., :FOV_H],  # out of place: training backprops here
@@ -179,14 +182,23 @@ class InfiniHandModel(nn.Module):
     def run_hands(self, images: torch.Tensor, geometry: GeometryOutput, T_world_cam: torch.Tensor,
                   intrinsics: torch.Tensor, boxes: HandBoxes | None = None,
                   detection: HandDetection | None = None) -> CameraSpaceOutput:
-        """Find the hands (unless ``boxes`` are given) and run the hand branch on them."""
+        """Find the hands (unless ``boxes`` are given) and run the hand branch on them.
+
+        Raises:
+            InputError: without ``boxes`` when the geometry was run without the mask head.
+
+        """
         detection = detection or self.hand_detection()
-        masks = geometry.hand_masks.flatten(0, 1)  # (B*S, 2, H, W)
-        if boxes is None:
-            boxes, presence = _detect_hands(masks, detection)
-        else:
-            presence = torch.ones(boxes.sides.shape, dtype=masks.dtype, device=masks.device)
         features = geometry.patch_features.flatten(0, 1)
+        if boxes is None:
+            if geometry.hand_masks is None:
+                raise InputError('run_hands: the geometry ran without the mask head '
+                                 '(masks=False), so there is nothing to find hands in; pass '
+                                 'boxes')
+            boxes, presence = _detect_hands(geometry.hand_masks.flatten(0, 1), detection)
+        else:
+            presence = torch.ones(boxes.sides.shape, dtype=features.dtype,
+                                  device=features.device)
         hands = self.hand_branch(images.flatten(0, 1), features,
                                  intrinsics.flatten(0, 1).to(features.dtype), boxes)
         return CameraSpaceOutput(geometry, T_world_cam, intrinsics, boxes, presence, hands)

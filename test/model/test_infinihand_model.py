@@ -1,6 +1,7 @@
 """Tests of model/infinihand_model.py: seeded building, branch compatibility, config names."""
 
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.core.errors import InputError
 from infinihand_ros.model.config import GeometryConfig
 from infinihand_ros.model.geometry_model import GeometryModel
 from infinihand_ros.model.hand.config import HandBranchConfig
@@ -46,3 +47,20 @@ def test_configs_load_by_name_or_path(geometry_config: GeometryConfig, tmp_path)
     assert load_branch_configs(path, 'tiny')[0] == geometry_config
     with pytest.raises(ConfigError, match='model_huge.yaml'):
         load_branch_configs('huge', 'tiny')
+
+
+def test_geometry_without_the_mask_head_gives_the_same_other_outputs(
+        model: InfiniHandModel) -> None:
+    """masks=False skips only the mask head; finding hands then needs given boxes."""
+    config = model.geometry.config.aggregator
+    images = torch.rand(1, 3, 3, config.image_height, config.image_width,
+                        generator=torch.Generator().manual_seed(0))
+    with torch.inference_mode():
+        full, poses, used = model.run_geometry(images, model.new_stream())
+        skipped, skipped_poses, _ = model.run_geometry(images, model.new_stream(), masks=False)
+        with pytest.raises(InputError, match='without the mask head'):
+            model.run_hands(images, skipped, skipped_poses, used)
+    assert skipped.hand_masks is None and full.hand_masks is not None
+    torch.testing.assert_close(skipped_poses, poses, rtol=0, atol=0)
+    for name in ('pose_encoding', 'depth', 'depth_conf', 'patch_features'):
+        torch.testing.assert_close(getattr(skipped, name), getattr(full, name), rtol=0, atol=0)
