@@ -1,7 +1,7 @@
 """Engine throughput, latency and memory on a long synthetic stream.
 
     python benchmarks/throughput.py [--config config/engine.yaml] [--frames 3000] [--ba] [--json]
-        [--modes per_frame windowed]
+        [--modes per_frame windowed] [--threads N] [--cpu-precision auto|fp32]
 
 Renders a short synthetic sequence (518x378, both hands) once and replays it as a stream of
 ``--frames`` frames with increasing stamps (at least 3). In each mode it prints frames/s over
@@ -12,7 +12,10 @@ runs per-frame mode with bundle adjustment off and on (push latencies side by si
 selections submitted, done, dropped, failed). The untrained model's hand masks cover whole
 frames, which leaves BA nothing to track, so both BA runs ignore hands (presence threshold
 0.999): BA then does its full work (tracking and solving over the model's depth and poses) while
-the stream runs. Prints one JSON line with ``--json``.
+the stream runs. ``--threads`` sets torch's intra-op threads (default: torch's, one per core) and
+``--cpu-precision`` overrides ``engine.cpu_precision``. The 1-minute load average before and
+after is printed with the figures (other processes on the machine slow every figure). Prints one
+JSON line with ``--json``.
 """
 
 import argparse
@@ -23,12 +26,14 @@ from pathlib import Path
 import time
 
 from infinihand_ros.ba.config import load_ba_config
+from infinihand_ros.engine.config import CPU_PRECISIONS
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
 import numpy as np
+import torch
 
 DISTINCT_FRAMES = 40
 RSS_CHECKPOINTS = (300, 1000, 3000, 10000)
@@ -95,9 +100,18 @@ def main() -> None:
     parser.add_argument('--modes', nargs='+', choices=('per_frame', 'windowed'),
                         default=['per_frame', 'windowed'])
     parser.add_argument('--ba', action='store_true', help='also run with bundle adjustment on')
+    parser.add_argument('--threads', type=int, default=None,
+                        help="torch intra-op threads (default: torch's)")
+    parser.add_argument('--cpu-precision', choices=CPU_PRECISIONS, default=None,
+                        help='override engine.cpu_precision')
     parser.add_argument('--json', action='store_true', help='print one JSON line')
     args = parser.parse_args()
+    if args.threads is not None:
+        torch.set_num_threads(args.threads)
     config = load_engine_config(args.config)
+    if args.cpu_precision is not None:
+        config = replace(config, cpu_precision=args.cpu_precision)
+    load_before = os.getloadavg()[0]
     frames = list(SyntheticSequence(SynthConfig(), seed=1, num_frames=DISTINCT_FRAMES))
     model = build_model(config)
     figures = {}
@@ -116,6 +130,8 @@ def main() -> None:
                     figures.update({f'ba_{key}': value
                                     for key, value in engine.statistics['ba'].items()})
             figures.update({key: value for key, value in run.items() if 'latency' in key})
+    figures.update(threads=torch.get_num_threads(), cpu_precision=config.cpu_precision,
+                   load_1min_before=load_before, load_1min_after=os.getloadavg()[0])
     rounded = {key: (round(value, 1) if isinstance(value, float) else value)
                for key, value in figures.items()}
     if args.json:
