@@ -32,6 +32,7 @@ from infinihand_ros.convert.run import RunOptions
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.engine.hands.config import HAND_SOURCES
 from tqdm import tqdm
 
 EXIT_OK: Final = 0
@@ -71,6 +72,11 @@ def build_parser() -> argparse.ArgumentParser:
                         '(scaled, centre-cropped)')
     parser.add_argument('--engine-config', type=Path, help='engine YAML (default: '
                         'config/engine.yaml)')
+    parser.add_argument('--hand-source', choices=HAND_SOURCES,
+                        help='where the hands come from: mediapipe (the default: MediaPipe '
+                        'Hands, trained on real photos, lifted to MANO; right for real '
+                        "recordings) or infinihand (the paper's hand branch; the bundled "
+                        'weights have seen only synthetic images)')
     parser.add_argument('--no-ba', action='store_true', help='turn bundle adjustment off')
     parser.add_argument('--no-estimates-bag', action='store_true',
                         help='do not write the MCAP bag of estimates per episode')
@@ -111,6 +117,8 @@ def validate_args(args: argparse.Namespace) -> tuple[ConvertConfig, RunOptions]:
         engine = config.engine
         if args.engine_config is not None:
             engine = replace(engine, config=str(args.engine_config))
+        if args.hand_source is not None:
+            engine = replace(engine, hand_source=args.hand_source)
         if args.no_ba:
             engine = replace(engine, bundle_adjustment=False)
         layout = config.dataset

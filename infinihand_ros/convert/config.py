@@ -20,6 +20,8 @@ from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.config import MODES
+from infinihand_ros.engine.hands.config import HAND_SOURCES
+from infinihand_ros.engine.hands.config import MEDIAPIPE
 
 CONVERT_SECTION: Final = 'convert'
 #: PyAV encoders the writer accepts (H.264 and AV1, both in PyAV's wheels).
@@ -34,17 +36,24 @@ class EngineChoice:
         config: engine YAML; '' for the package's ``config/engine.yaml``.
         mode: 'windowed' (throughput) or 'per_frame'.
         bundle_adjustment: run BA (the engine file's settings, else ``config/ba.yaml``).
+        hand_source: the engine's hand source: 'mediapipe' (real recordings: MediaPipe Hands
+            lifted to MANO) or 'infinihand' (the paper's hand branch; the bundled weights have
+            seen only synthetic images).
 
     """
 
     config: str = ''
     mode: str = 'windowed'
     bundle_adjustment: bool = True
+    hand_source: str = MEDIAPIPE
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
             raise ConfigError(f'convert.engine.mode must be one of {list(MODES)}, got '
                               f'{self.mode!r}')
+        if self.hand_source not in HAND_SOURCES:
+            raise ConfigError(f'convert.engine.hand_source must be one of '
+                              f'{list(HAND_SOURCES)}, got {self.hand_source!r}')
 
 
 @dataclass(frozen=True)

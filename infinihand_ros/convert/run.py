@@ -85,7 +85,7 @@ class EpisodeSink(Protocol):
 
 
 def engine_config_for(config: ConvertConfig) -> EngineConfig:
-    """Return the engine settings of ``config.engine`` (mode and bundle adjustment applied).
+    """Return the engine settings of ``config.engine`` (mode, BA and hand source applied).
 
     A conversion is an offline run: with BA on, the stream waits for BA rather than dropping
     pool selections (``ba.worker.when_behind: wait``).
@@ -94,7 +94,8 @@ def engine_config_for(config: ConvertConfig) -> EngineConfig:
     base = load_engine_config(Path(choice.config).expanduser() if choice.config else None)
     ba = (for_offline_runs(base.bundle_adjustment or load_ba_config())
           if choice.bundle_adjustment else None)
-    return replace(base, mode=choice.mode, bundle_adjustment=ba)
+    return replace(base, mode=choice.mode, bundle_adjustment=ba,
+                   hands=replace(base.hands, source=choice.hand_source))
 
 
 def task_for(source: InputSource, config: ConvertConfig) -> str:

@@ -70,7 +70,7 @@ def test_sizes_and_rates_mix_into_one_dataset(tmp_path: Path) -> None:
     assert all(0.0 <= c <= 1.0 for row in data[HAND_CONFIDENCE] for c in row)
     provenance = records[1]['provenance']
     assert provenance == records[0]['provenance']
-    assert provenance['hand_source'] == 'infinihand'
+    assert provenance['hand_source'] == 'mediapipe'  # the converter's default
     assert provenance['weights'] == {'full': {
         'name': 'tiny_synthetic', 'sha256': files_sha256(resolve_checkpoint('tiny_synthetic'))}}
     assert len(provenance['engine_config_sha256']) == 64 and provenance['package_version']
