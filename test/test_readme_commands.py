@@ -4,8 +4,8 @@ Every command the README shows (in code blocks and inline code) that starts with
 package's console scripts, ``ros2 run infinihand_ros``, ``python -m infinihand_ros.`` or
 ``python benchmarks/`` is run with ``--help`` in a fresh bash that only sourced the environment
 script, as a user would type it. Without ``ros2`` on PATH a ``ros2 run infinihand_ros X`` command
-is checked as the plain script ``X`` the README offers for that setup. ROS nodes take no
-``--help`` (they start), so for them the script must resolve on PATH.
+is checked as the plain script ``X`` the README offers for that setup. The nodes' ``--help``
+also names their hand source and every parameter.
 """
 
 import importlib.metadata
@@ -21,8 +21,6 @@ ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / 'README.md'
 PACKAGE = 'infinihand_ros'
 ROS2_RUN = f'ros2 run {PACKAGE} '
-#: Console scripts that start a ROS node (no argparse, no --help).
-NODE_SCRIPTS = ('estimator', 'bundle_adjustment')
 _CODE = re.compile(r'```bash\n(.*?)```|`([^`\n][^`]*)`', re.DOTALL)
 
 
@@ -98,10 +96,18 @@ def test_extraction_reads_blocks_and_inline_code() -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize('command', [c for c in _commands()
-                                     if _as_typed(c) not in NODE_SCRIPTS])
+@pytest.mark.parametrize('command', _commands())
 def test_readme_command_help(command: str) -> None:
     """``COMMAND --help`` exits 0 with a usage line, as typed after source scripts/env.sh."""
     result = _fresh_bash(f'{_as_typed(command)} --help')
     assert result.returncode == 0, f'{command} --help: {result.stderr[-2000:]}'
     assert 'usage' in result.stdout.lower(), result.stdout[:500]
+
+
+def test_node_help_names_the_hand_source_and_the_parameters() -> None:
+    """``estimator --help`` says which hand source runs and why, and lists its parameters."""
+    result = _fresh_bash('estimator --help')
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert 'mediapipe by default' in result.stdout and 'synthetic' in result.stdout
+    assert "hands.source ('mediapipe')" in result.stdout
+    assert "engine.bundle_adjustment ('none')" in result.stdout

@@ -100,6 +100,12 @@ def _table(defaults: Any, prefix: str) -> dict[str, tuple[Any, ParameterSpec]]:
     return table
 
 
+def parameters_help(config_type: type) -> str:
+    """Return one line per parameter: ``name (default): description`` (for ``--help``)."""
+    return '\n'.join(f'  {name} ({default!r}): {spec.full_description}'
+                     for name, (default, spec) in parameter_table(config_type).items())
+
+
 def unflatten(values: dict[str, Any]) -> dict[str, Any]:
     """Return dotted names as nested mappings (``{'a.b': 1}`` -> ``{'a': {'b': 1}}``)."""
     tree: dict[str, Any] = {}

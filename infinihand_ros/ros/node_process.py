@@ -13,18 +13,22 @@ participant is created. A profile file the user set (in that variable or in Fast
 ``FASTDDS_DEFAULT_PROFILES_FILE``), or another RMW than Fast DDS, is left alone.
 """
 
+import argparse
 from collections.abc import Callable
 from collections.abc import MutableMapping
 import os
 from pathlib import Path
+import sys
 from typing import Final
 
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.core.parameters import parameters_help
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.utilities import remove_ros_args
 PROFILE_FILE: Final = 'fastdds_profile.xml'
 PROFILE_VARIABLES: Final = ('FASTRTPS_DEFAULT_PROFILES_FILE', 'FASTDDS_DEFAULT_PROFILES_FILE')
 RMW_VARIABLE: Final = 'RMW_IMPLEMENTATION'
@@ -53,6 +57,21 @@ def use_package_dds_profile(environ: MutableMapping[str, str] | None = None) -> 
 
 EXIT_OK: Final = 0
 EXIT_BAD_START: Final = 1
+
+
+def parse_command_line(name: str, description: str, config_type: type,
+                       args: list[str] | None = None) -> None:
+    """Handle the non-ROS arguments: ``-h``/``--help`` prints the node and its parameters.
+
+    ROS arguments (``--ros-args ...``) are left to rclpy; any other argument is refused with a
+    usage message (exit 2).
+    """
+    argv = remove_ros_args(args=sys.argv if args is None else args)[1:]
+    parser = argparse.ArgumentParser(
+        prog=name, description=description, formatter_class=argparse.RawDescriptionHelpFormatter,
+        epilog='Parameters (set with --ros-args -p NAME:=VALUE or --params-file FILE):\n'
+               + parameters_help(config_type))
+    parser.parse_args(argv)
 
 
 def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = None) -> int:

@@ -43,6 +43,7 @@ from infinihand_ros.ros.estimator.diagnostics import DiagnosticReport
 from infinihand_ros.ros.estimator.node_statistics import OK
 from infinihand_ros.ros.estimator.node_statistics import WARN
 from infinihand_ros.ros.estimator.publishers import LATCHED_QOS
+from infinihand_ros.ros.node_process import parse_command_line
 from infinihand_ros.ros.node_process import run_node
 from infinihand_ros.ros.parameters import declare_parameters
 from nav_msgs.msg import Path
@@ -140,8 +141,15 @@ class BundleAdjustmentNode(Node):
                                 tuple((key, str(value)) for key, value in values))
 
 
+DESCRIPTION: Final = (
+    'The InfiniHand bundle-adjustment node: refines the keyframes an estimator running with\n'
+    'engine.bundle_adjustment:=node sends (bundle_adjustment/keyframes/*) and answers with\n'
+    'corrections (bundle_adjustment/corrections).')
+
+
 def main(args: list[str] | None = None) -> int:
-    """Run the node until shut down; return the exit code."""
+    """Run the node until shut down (``--help``: print the node and its parameters)."""
+    parse_command_line('bundle_adjustment', DESCRIPTION, BundleAdjustmentNodeConfig, args)
     return run_node(BundleAdjustmentNode, BA_NODE_NAME, args)
 
 

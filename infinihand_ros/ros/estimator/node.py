@@ -47,6 +47,7 @@ from infinihand_ros.ros.estimator.image_decoding import decode_image
 from infinihand_ros.ros.estimator.node_statistics import EstimatorStatistics
 from infinihand_ros.ros.estimator.node_statistics import StatisticsSnapshot
 from infinihand_ros.ros.estimator.publishers import OutputPublishers
+from infinihand_ros.ros.node_process import parse_command_line
 from infinihand_ros.ros.node_process import run_node
 from infinihand_ros.ros.parameters import declare_parameters
 from rclpy.node import Node
@@ -243,8 +244,18 @@ class EstimatorNode(Node):
             now, f'{self.get_name()}: estimator', self.get_fully_qualified_name(), report))
 
 
+DESCRIPTION: Final = (
+    'The InfiniHand estimator: camera images in (image, image/compressed, camera_info),\n'
+    'camera pose and world-space hands out (~/camera_pose, ~/camera_path, ~/hands/...).\n\n'
+    'Hand source: mediapipe by default (MediaPipe Hands, trained on real photos, lifted to\n'
+    'MANO), because this node runs on real camera images and the bundled InfiniHand weights\n'
+    'have seen only synthetic images. -p hands.source:=infinihand runs the hand branch of\n'
+    'the paper (for trained checkpoints; hands.verify guards it with MediaPipe).')
+
+
 def main(args: list[str] | None = None) -> int:
-    """Run the node until shut down; return the exit code."""
+    """Run the node until shut down (``--help``: print the node and its parameters)."""
+    parse_command_line('estimator', DESCRIPTION, EstimatorConfig, args)
     return run_node(EstimatorNode, NODE_NAME, args)
 
 
