@@ -38,6 +38,7 @@ from infinihand_ros.mano.kinematics import CHAIN_TIPS
 from infinihand_ros.mano.kinematics import PARENTS_WITH_TIPS
 import numpy as np
 import roma
+from scipy.spatial.transform import Rotation
 import torch
 
 #: Palm joints (wrist, MCPs of index, middle, ring, pinky) used for the rigid initialisation.
@@ -321,28 +322,52 @@ def fit_mano(model: HandModel, keypoints: np.ndarray, valid: np.ndarray | None =
         seconds=time.perf_counter() - start)
 
 
-def _swing(source: torch.Tensor, target: torch.Tensor) -> torch.Tensor:
-    """Smallest rotations (..., 3, 3) turning directions ``source`` onto ``target`` (..., 3)."""
-    a = source / source.norm(dim=-1, keepdim=True).clamp_min(1e-12)
-    b = target / target.norm(dim=-1, keepdim=True).clamp_min(1e-12)
-    axis = torch.cross(a, b, dim=-1)
-    angle = torch.atan2(axis.norm(dim=-1), (a * b).sum(dim=-1))
-    rotvec = axis / axis.norm(dim=-1, keepdim=True).clamp_min(1e-12) * angle[..., None]
-    return roma.rotvec_to_rotmat(rotvec)
+def _swing(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Smallest rotations (K, 3, 3) turning directions ``source`` onto ``target`` (K, 3)."""
+    a = source / np.maximum(np.linalg.norm(source, axis=-1, keepdims=True), 1e-12)
+    b = target / np.maximum(np.linalg.norm(target, axis=-1, keepdims=True), 1e-12)
+    axis = np.cross(a, b)
+    angle = np.arctan2(np.linalg.norm(axis, axis=-1), np.sum(a * b, axis=-1))
+    unit = axis / np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-12)
+    return Rotation.from_rotvec(unit * angle[:, None]).as_matrix()
+
+
+def _kabsch(source: np.ndarray, target: np.ndarray) -> np.ndarray:
+    """Return the rotation (3, 3) best turning centred ``source`` points onto ``target``'s."""
+    a = source - source.mean(axis=0)
+    b = target - target.mean(axis=0)
+    u, _, vt = np.linalg.svd(a.T @ b)
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    return vt.T @ np.diag([1.0, 1.0, d]) @ u.T
+
+
+def rest_joints(model: HandModel, betas: np.ndarray | None = None) -> np.ndarray:
+    """Return the model's (21, 3) joints at zero pose and translation, MANO order with tips."""
+    reference = next(model.buffers())
+    zeros = torch.zeros
+    shape = zeros(1, NUM_BETAS) if betas is None else torch.as_tensor(np.asarray(betas)[None])
+    with torch.no_grad():
+        joints = model(zeros(1, 3, dtype=reference.dtype),
+                       zeros(1, NUM_HAND_POSE_JOINTS, 3, dtype=reference.dtype),
+                       shape.to(reference.dtype), zeros(1, 3, dtype=reference.dtype)).joints
+    return joints[0].detach().cpu().numpy().astype(np.float64)[list(OPENPOSE_TO_MANO)]
 
 
 def inverse_kinematics(model: HandModel, keypoints: np.ndarray,
-                       betas: np.ndarray | None = None) -> ManoParams:
+                       betas: np.ndarray | None = None,
+                       rest: np.ndarray | None = None) -> ManoParams:
     """Return MANO parameters whose joints follow one frame's keypoints, without iterating.
 
-    The wrist orientation and translation are the rigid fit of the rest palm; each finger joint
-    then takes the smallest rotation that turns its rest bone onto the keypoints' bone (no
-    twist about the bone). Bone lengths stay the model's for ``betas``.
+    The wrist orientation is the rigid fit of the rest palm (wrist and MCPs); each finger
+    joint then takes the smallest rotation that turns its rest bone onto the keypoints' bone
+    (no twist about the bone). Bone lengths stay the model's for ``betas``; the wrist lands on
+    the keypoints' wrist (MANO rotates about its rest wrist joint).
 
     Args:
         model: hand model of the keypoints' side.
         keypoints: (21, 3) joints in metres, OpenPose order, all finite.
         betas: (10,) shape to use (default: the mean shape).
+        rest: ``rest_joints(model, betas)`` when the caller keeps it (saves a model call).
 
     Raises:
         InputError: for keypoints of the wrong shape or with non-finite values.
@@ -351,32 +376,21 @@ def inverse_kinematics(model: HandModel, keypoints: np.ndarray,
     points_np, valid = _check_inputs(np.asarray(keypoints)[None], None)
     if not valid.all():
         raise InputError('inverse_kinematics: every keypoint must be finite')
-    reference = next(model.buffers())
-    points = torch.as_tensor(points_np[0], dtype=reference.dtype, device=reference.device)
-    shape = torch.zeros(1, NUM_BETAS, dtype=points.dtype) if betas is None else \
-        torch.as_tensor(np.asarray(betas)[None], dtype=points.dtype)
-    with torch.no_grad():
-        orient, _ = _rigid_init(model, points[None], torch.ones(1, NUM_JOINTS, dtype=torch.bool))
-        zeros = points.new_zeros
-        rest = model(zeros(1, 3), zeros(1, NUM_HAND_POSE_JOINTS, 3), shape,
-                     zeros(1, 3)).joints[0][list(OPENPOSE_TO_MANO)]
-        target = points[list(OPENPOSE_TO_MANO)]
-        rotations = points.new_zeros(len(PARENTS_WITH_TIPS), 3, 3)
-        rotations[0] = roma.rotvec_to_rotmat(orient[0])
-        local = points.new_zeros(NUM_HAND_POSE_JOINTS + 1, 3, 3)
-        local[0] = rotations[0]
-        levels = list(CHAIN_LEVELS) + [CHAIN_TIPS]
-        for joints, children in zip(levels[:-1], levels[1:]):
-            joints, children = list(joints), list(children)
-            parents = [PARENTS_WITH_TIPS[j] for j in joints]
-            held = torch.einsum('kij,kj->ki', rotations[parents], rest[children] - rest[joints])
-            swing = _swing(held, target[children] - target[joints])
-            rotations[joints] = swing @ rotations[parents]
-            local[joints] = rotations[parents].transpose(-1, -2) @ rotations[joints]
-        pose = roma.rotmat_to_rotvec(local[1:])
-        params = _Parameters(orient, pose[None], shape, zeros(1, 3))
-        wrist = _joints_mm(model, params)[0, 0] / _M_TO_MM
-    numpy = {name: value.detach().cpu().numpy().astype(np.float64)
-             for name, value in (('orient', orient[0]), ('pose', pose), ('betas', shape[0]))}
-    return ManoParams(numpy['orient'], numpy['pose'], numpy['betas'],
-                      (points[0] - wrist).cpu().numpy().astype(np.float64))
+    target = points_np[0][list(OPENPOSE_TO_MANO)]
+    rest = rest_joints(model, betas) if rest is None else rest
+    palm = [OPENPOSE_TO_MANO.index(joint) for joint in PALM_JOINTS]
+    rotations = np.zeros((len(PARENTS_WITH_TIPS), 3, 3))
+    rotations[0] = _kabsch(rest[palm], target[palm])
+    local = np.zeros((NUM_HAND_POSE_JOINTS + 1, 3, 3))
+    local[0] = rotations[0]
+    levels = list(CHAIN_LEVELS) + [CHAIN_TIPS]
+    for joints, children in zip(levels[:-1], levels[1:]):
+        joints, children = list(joints), list(children)
+        parents = [PARENTS_WITH_TIPS[j] for j in joints]
+        held = np.einsum('kij,kj->ki', rotations[parents], rest[children] - rest[joints])
+        swing = _swing(held, target[children] - target[joints])
+        rotations[joints] = swing @ rotations[parents]
+        local[joints] = np.swapaxes(rotations[parents], -1, -2) @ rotations[joints]
+    vectors = Rotation.from_matrix(local).as_rotvec()
+    shape = np.zeros(NUM_BETAS) if betas is None else np.asarray(betas, dtype=np.float64)
+    return ManoParams(vectors[0], vectors[1:], shape.copy(), target[0] - rest[0])

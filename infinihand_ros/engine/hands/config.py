@@ -34,7 +34,7 @@ class HandsConfig:
                                       0, 1)
     min_detection_confidence: float = parameter(0.5, 'MediaPipe palm detections scoring lower '
                                                 'are dropped.', 0.0, 1.0)
-    min_tracking_confidence: float = parameter(0.5, 'MediaPipe re-detects a tracked hand whose '
+    min_tracking_confidence: float = parameter(0.8, 'MediaPipe re-detects a tracked hand whose '
                                                'landmark score falls below this.', 0.0, 1.0)
     refine_iterations: int = parameter(0, 'L-BFGS steps refining the MANO fit of each MediaPipe '
                                        'hand after the closed-form start (0: none).', 0, 1000)

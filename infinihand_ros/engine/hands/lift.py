@@ -25,6 +25,7 @@ from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.data.mano_fit import fit_mano
 from infinihand_ros.data.mano_fit import inverse_kinematics
 from infinihand_ros.data.mano_fit import ManoFitConfig
+from infinihand_ros.data.mano_fit import rest_joints
 from infinihand_ros.mano.base import HandModel
 from infinihand_ros.model.hand.lsp import solve_lateral_translation
 import numpy as np
@@ -111,19 +112,19 @@ def lift_hand(side: int, landmarks_px: np.ndarray, joints_metric: np.ndarray,
 
     """
     betas = None if previous is None else previous.betas
-    params = inverse_kinematics(model, joints_metric, betas)
+    rest = rest_joints(model, betas)
+    params = inverse_kinematics(model, joints_metric, betas, rest)
     if refine_iterations > 0:
-        start = params if previous is None else ManoParams(
-            params.global_orient, params.hand_pose, previous.betas, params.transl)
         fitted = fit_mano(model, joints_metric[None],
-                          config=ManoFitConfig(iterations=refine_iterations), initial=start)
+                          config=ManoFitConfig(iterations=refine_iterations), initial=params)
         params = ManoParams(fitted.global_orient[0], fitted.hand_pose[0], fitted.betas[0],
                             fitted.transl[0])
+        rest = rest_joints(model, params.betas)
     relative = _joints(model, params) - params.transl
     shift, error_px = place_by_projection(relative, landmarks_px, intrinsics)
     for _ in range(RAY_PASSES):  # bones towards the landmarks' rays at the depths found
         rays = _back_project(landmarks_px, (relative + shift)[:, 2], intrinsics)
-        candidate = inverse_kinematics(model, rays, params.betas)
+        candidate = inverse_kinematics(model, rays, params.betas, rest)
         moved = _joints(model, candidate) - candidate.transl
         moved_shift, moved_error = place_by_projection(moved, landmarks_px, intrinsics)
         if moved_error >= error_px:

@@ -1,0 +1,176 @@
+"""Hands on real pixels: each hand source against an independent detector, and its cost.
+
+    python benchmarks/real_hands.py [--stills DIR] [--json]
+
+Reads the shared real stills (``../shared/data/real_hands_stills``: 30 photos, one hand each)
+and streams them through the engine with each hand source: ``mediapipe``, ``infinihand`` and
+``infinihand`` with the ``verify`` guard (camera static, so only the hands differ). The
+reference is MediaPipe in static-image mode, a separate instance (each photo on its own). It
+prints, per source: the share of the reference's hands found (same side), phantom hands (a hand
+the reference does not have, per frame), for mediapipe the share of hands whose lifted joints
+reproject within 0.1 of the box size onto the landmarks, and the branch's presence scores.
+Then the cost per frame on one torch thread: MediaPipe alone (video mode) beside the mediapipe
+source (MediaPipe + lifting to MANO), on the stills and on a crop video of one still.
+"""
+
+import argparse
+from dataclasses import replace
+import json
+from pathlib import Path
+import sys
+import time
+
+from infinihand_ros.bag.camera_stream import read_camera_frames
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.data.mediapipe_source import MediaPipeConfig
+from infinihand_ros.data.mediapipe_source import MediaPipeKeypointSource
+from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.hands.boxes import box_iou
+from infinihand_ros.engine.hands.boxes import landmark_box
+from infinihand_ros.engine.hands.config import HandsConfig
+from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
+from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
+from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.mano.builtin import BuiltinHandModel
+import numpy as np
+import torch
+
+STILLS = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real_hands_stills'
+SOURCES = {'mediapipe': HandsConfig(source='mediapipe'),
+           'infinihand': HandsConfig(source='infinihand'),
+           'infinihand+verify': HandsConfig(source='infinihand', verify=True)}
+#: A found hand matches a reference hand of the same side overlapping it at least this much.
+MATCH_IOU = 0.3
+
+
+def _reference(frames: list) -> list[list]:
+    """Return the independent detector's hands per frame (static mode, one photo at a time)."""
+    with MediaPipeKeypointSource(MediaPipeConfig(static_image_mode=True)) as detector:
+        return [list(detector.detect(frame.rgb, index)) for index, frame in enumerate(frames)]
+
+
+def _run_source(frames: list, hands: HandsConfig) -> tuple[list, dict]:
+    """Return the engine's results per frame (static camera) and its hand statistics."""
+    config = replace(load_engine_config(), hands=hands, camera_motion='static')
+    with StreamingEngine(config) as engine:
+        results = []
+        for frame in frames:
+            results += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+        results += engine.flush()
+        return results, engine.statistics['hands']
+
+
+def _score(results: list, reference: list[list]) -> dict[str, object]:
+    """Return found / phantom figures of one source against the reference."""
+    found = phantoms = wanted = 0
+    phantom_frames = 0
+    for result, expected in zip(results, reference):
+        wanted += len(expected)
+        boxes = [(d.side, landmark_box(d.joints_2d)) for d in expected]
+        frame_phantoms = 0
+        for hand in result.hands:
+            match = any(side == hand.side and box_iou(box, hand.box_xyxy) >= MATCH_IOU
+                        for side, box in boxes)
+            found += match
+            frame_phantoms += not match
+        phantoms += frame_phantoms
+        phantom_frames += frame_phantoms > 0
+    return {'reference_hands': wanted, 'found': found,
+            'found_share': found / max(wanted, 1), 'phantom_hands': phantoms,
+            'phantom_frame_share': phantom_frames / max(len(results), 1)}
+
+
+def _crop_video(frame, count: int = 60) -> list:
+    """Return a crop video (panning, zooming) of one still with exact intrinsics."""
+    import cv2
+    k = frame.intrinsics
+    out = []
+    for index in range(count):
+        phase = index / count
+        width = 640 * (0.55 + 0.25 * np.sin(2 * np.pi * phase))
+        x0 = (640 - width) * (0.5 + 0.4 * np.sin(2 * np.pi * phase))
+        y0 = (480 - width * 0.75) * 0.5
+        scale = 320 / width
+        matrix = np.array([[scale, 0.0, (0.5 - x0) * scale - 0.5],
+                           [0.0, scale, (0.5 - y0) * scale - 0.5]])
+        rgb = cv2.warpAffine(frame.rgb, matrix, (320, 240), flags=cv2.INTER_AREA)
+        intrinsics = Intrinsics(k.fx * scale, k.fy * scale, (k.cx + 0.5 - x0) * scale - 0.5,
+                                (k.cy + 0.5 - y0) * scale - 0.5, 320, 240)
+        out.append((rgb, intrinsics))
+    return out
+
+
+def _costs(images: list[tuple[np.ndarray, Intrinsics]]) -> dict[str, float]:
+    """Return median ms per frame: MediaPipe alone and the mediapipe source (+ lifting)."""
+    torch.set_num_threads(1)
+    config = HandsConfig(source='mediapipe')
+    detector = MediaPipeDetector(config)
+    source = MediaPipeHandSource(config, (BuiltinHandModel(0), BuiltinHandModel(1)))
+    alone, full, hands = [], [], 0
+    try:
+        for rounds in range(2):  # the first round warms both up
+            alone, full = [], []
+            for index, (rgb, intrinsics) in enumerate(images):
+                start = time.perf_counter()
+                detector.detect(rgb, index)
+                alone.append(time.perf_counter() - start)
+                start = time.perf_counter()
+                found = source.camera_hands(source.detect(rgb, index), (), intrinsics,
+                                            (rgb.shape[1], rgb.shape[0]))
+                full.append(time.perf_counter() - start)
+                hands += len(found) if rounds else 0
+    finally:
+        detector.close()
+        source.close()
+    return {'mediapipe_alone_ms': 1e3 * float(np.median(alone)),
+            'mediapipe_source_ms': 1e3 * float(np.median(full)),
+            'ratio': float(np.median(full) / np.median(alone)),
+            'hands_per_frame': hands / len(images)}
+
+
+def main() -> int:
+    """Print the figures (or one JSON object)."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--stills', type=Path, default=STILLS, help='the real stills bag')
+    parser.add_argument('--json', action='store_true', help='print one JSON object')
+    args = parser.parse_args()
+    if not args.stills.exists():
+        parser.error(f'{args.stills} does not exist (the shared real stills)')
+    frames = list(read_camera_frames(args.stills))
+    reference = _reference(frames)
+    report: dict[str, object] = {'frames': len(frames),
+                                 'reference_frames_with_hands': sum(map(bool, reference))}
+    for name, hands in SOURCES.items():
+        results, statistics = _run_source(frames, hands)
+        report[name] = {**_score(results, reference), 'statistics': statistics}
+        if name == 'infinihand':
+            scores = [h.confidence for r in results for h in r.hands]
+            report[name]['presence_percentiles_10_50_90'] = (
+                np.percentile(scores, [10, 50, 90]).round(3).tolist() if scores else [])
+    single = next(f for f, r in zip(frames, reference) if len(r) == 1)
+    report['cost_stills'] = _costs([(f.rgb, f.intrinsics) for f in frames])
+    report['cost_crop_video'] = _costs(_crop_video(single))
+    if args.json:
+        print(json.dumps(report, indent=2, default=float))
+        return 0
+    print(f"{report['frames']} real stills; the reference (MediaPipe, static mode) has hands on "
+          f"{report['reference_frames_with_hands']}")
+    print(f"{'source':<20}{'found':>8}{'share':>8}{'phantom hands':>15}{'phantom frames':>16}")
+    for name in SOURCES:
+        row = report[name]
+        print(f"{name:<20}{row['found']:>8}{row['found_share']:>8.3f}{row['phantom_hands']:>15}"
+              f"{row['phantom_frame_share']:>16.3f}")
+    print(f'mediapipe: lifted joints within 0.1 of the box (p95 of the error as a box '
+          f"fraction): {report['mediapipe']['statistics']['reprojection_box_fraction_p95']:.3f}")
+    print(f'infinihand presence scores (10/50/90 %): '
+          f"{report['infinihand']['presence_percentiles_10_50_90']}")
+    for key in ('cost_stills', 'cost_crop_video'):
+        cost = report[key]
+        print(f"{key}: MediaPipe alone {cost['mediapipe_alone_ms']:.1f} ms/frame, mediapipe "
+              f"source {cost['mediapipe_source_ms']:.1f} ms/frame ({cost['ratio']:.2f}x), "
+              f"{cost['hands_per_frame']:.2f} hands/frame")
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
