@@ -314,7 +314,8 @@ class StreamingEngine:
             with torch.inference_mode():
                 geometry, poses, used = self.model.run_geometry(
                     images, self._stream, [frame.keyframe for frame in frames], intrinsics,
-                    known, self._detection, self._cpu_bf16)
+                    known, self._detection, self._cpu_bf16,
+                    masks=self._hand_source.uses_hand_branch)
         except ModelOutputError as exc:  # the block's frames were not added: forget them
             self._frames_pushed -= len(frames)
             self._last_stamp = self._accepted_stamp
