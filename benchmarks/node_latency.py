@@ -36,7 +36,7 @@ from geometry_msgs.msg import PoseStamped
 from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.core.units import NS_PER_S
-from infinihand_ros.ros.dds_profile import use_package_dds_profile
+from infinihand_ros.ros.node_process import use_package_dds_profile
 import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor

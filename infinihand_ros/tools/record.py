@@ -16,7 +16,7 @@ import time
 from typing import Any, Final
 
 from infinihand_ros.bag.typestore import build_typestore
-from infinihand_ros.ros.dds_profile import use_package_dds_profile
+from infinihand_ros.ros.node_process import use_package_dds_profile
 from infinihand_ros.tools.replay import message_class
 import rclpy
 from rclpy.executors import ExternalShutdownException

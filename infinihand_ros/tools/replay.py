@@ -22,7 +22,7 @@ from typing import Any, Final
 from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.core.errors import BagError
 from infinihand_ros.core.units import NS_PER_S
-from infinihand_ros.ros.dds_profile import use_package_dds_profile
+from infinihand_ros.ros.node_process import use_package_dds_profile
 import rclpy
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
