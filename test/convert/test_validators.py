@@ -48,8 +48,9 @@ def _dataset(tmp_path: Path) -> Path:
     return output
 
 
-def _run_json(command: list[str]) -> dict:
-    run = subprocess.run(command, capture_output=True, text=True, timeout=300)
+def _run_json(command: list[str], cwd: Path) -> dict:
+    """Run a validator in ``cwd`` (physlint keeps a .physlint/ cache in its working folder)."""
+    run = subprocess.run(command, capture_output=True, text=True, timeout=300, cwd=cwd)
     return json.loads(run.stdout)
 
 
@@ -57,12 +58,13 @@ def _run_json(command: list[str]) -> dict:
 def test_lerobot_doctor_and_physlint_find_no_failure(tmp_path: Path) -> None:
     pytest.importorskip('lerobot_doctor')
     output = _dataset(tmp_path)
-    doctor = _run_json([str(BIN / 'lerobot-doctor'), 'check', str(output), '--json'])
+    doctor = _run_json([str(BIN / 'lerobot-doctor'), 'check', str(output), '--json'], tmp_path)
     assert doctor['total_episodes'] == 2
     failed = [check for check in doctor['checks'] if check['severity'] == 'FAIL']
     assert not failed, failed
     pytest.importorskip('physlint')
     for path in [output, *sorted((output / 'estimates').iterdir())]:
-        report = _run_json([str(BIN / 'physlint'), 'check', str(path), '--format', 'json'])
+        report = _run_json([str(BIN / 'physlint'), 'check', str(path), '--format', 'json'],
+                           tmp_path)
         failed = [r for r in report['results'] if r['status'] not in ('passed', 'not_run')]
         assert report['status'] == 'passed' and not failed, (path, failed)
