@@ -26,6 +26,8 @@ from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.hands.config import HAND_SOURCES
+from infinihand_ros.engine.hands.config import INFINIHAND
 from infinihand_ros.eval.cli import mean_pose_joints
 from infinihand_ros.eval.cli import save_outputs
 from infinihand_ros.eval.recorded import evaluate_recorded
@@ -58,6 +60,7 @@ class LiveDemoOptions:
     rate_hz: float
     bundle_adjustment: str
     seconds: float
+    hand_source: str = INFINIHAND
 
 
 def parse_args(argv: list[str] | None) -> LiveDemoOptions:
@@ -71,6 +74,10 @@ def parse_args(argv: list[str] | None) -> LiveDemoOptions:
                         help='bundle adjustment: none, in_process (the engine) or node')
     parser.add_argument('--seconds', type=float, default=0.0, metavar='S',
                         help='replay only the first S seconds of the bag (0: all of it)')
+    parser.add_argument('--hand-source', choices=HAND_SOURCES, default=INFINIHAND,
+                        help="the node's hands.source (default infinihand: the sample bag is "
+                        'synthetic, what the bundled weights were trained on; the node itself '
+                        'defaults to mediapipe for real cameras)')
     args = parser.parse_args(argv)
     if not args.rate > 0.0:
         parser.error(f'--rate must be > 0, got {args.rate}')
@@ -82,7 +89,7 @@ def parse_args(argv: list[str] | None) -> LiveDemoOptions:
         check_writable_location(args.out, '--out')
     except InfiniHandError as exc:
         parser.error(str(exc))
-    return LiveDemoOptions(args.out, args.rate, args.ba, args.seconds)
+    return LiveDemoOptions(args.out, args.rate, args.ba, args.seconds, args.hand_source)
 
 
 def replayed_stamps(bag: Path, seconds: float) -> set[int]:
@@ -121,7 +128,7 @@ def run(options: LiveDemoOptions, bag: Path) -> str:
     stamps = replayed_stamps(bag, options.seconds)
     sequence = segment(full, stamps)
     spec = LiveRunSpec(bag, out / RECORDED_DIR, out / LOGS_DIR, options.rate_hz / full.fps,
-                       options.seconds, options.bundle_adjustment)
+                       options.seconds, options.bundle_adjustment, options.hand_source)
     domain_id = run_live(spec)
     recorded = read_recorded(spec.recorded, recorded_topics())
     mean_pose, mean_pose_source = mean_pose_joints(None, load_engine_config(), [sequence])

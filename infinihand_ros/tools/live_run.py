@@ -18,6 +18,8 @@ from typing import Final
 
 from infinihand_ros.core import topics
 from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.engine.hands.config import HAND_SOURCES
+from infinihand_ros.engine.hands.config import INFINIHAND
 from infinihand_ros.eval.recorded import RecordedTopics
 from infinihand_ros.ros.estimator.config import BA_MODES
 from infinihand_ros.ros.estimator.config import NODE_NAME
@@ -54,6 +56,7 @@ class LiveRunSpec:
         speed: replay speed (1 real time).
         seconds: replay only the first ``seconds`` of bag time (0: all of it).
         bundle_adjustment: ``none``, ``in_process`` or ``node`` (``engine.bundle_adjustment``).
+        hand_source: the node's ``hands.source`` (``infinihand`` for our synthetic bags).
 
     """
 
@@ -63,12 +66,16 @@ class LiveRunSpec:
     speed: float
     seconds: float
     bundle_adjustment: str = 'none'
+    hand_source: str = INFINIHAND
 
     def __post_init__(self) -> None:
         """Check the BA mode (InfiniHandError naming it)."""
         if self.bundle_adjustment not in BA_MODES:
             raise InfiniHandError(f'bundle adjustment: must be one of {list(BA_MODES)}, got '
                                   f'{self.bundle_adjustment!r}')
+        if self.hand_source not in HAND_SOURCES:
+            raise InfiniHandError(f'hand source: must be one of {list(HAND_SOURCES)}, got '
+                                  f'{self.hand_source!r}')
 
 
 def recorded_topics() -> RecordedTopics:
@@ -102,7 +109,7 @@ def run_live(spec: LiveRunSpec) -> int:
     env = node_processes.ros_env(domain_id)
     wanted = recorded_topics()
     params = ['--ros-args', '-p', f"engine.bundle_adjustment:='{spec.bundle_adjustment}'",
-              *REMAPS]
+              '-p', f"hands.source:='{spec.hand_source}'", *REMAPS]
     with contextlib.ExitStack() as stack:
         estimator = _started(stack, 'estimator', params, env, spec.logs, (ESTIMATOR_READY,))
         nodes = [('estimator', estimator)]
