@@ -162,6 +162,7 @@ def execute(plan: EvaluationPlan, save_to: Path | None
     evaluation = evaluate(plan.sequences, lambda: StreamingEngine(config), plan.mean_pose,
                           on_sequence, plan.poses)
     settings = {'checkpoint': config.model.checkpoint, 'mode': config.mode,
+                'hand_source': config.hands.source,
                 'bundle_adjustment': config.bundle_adjustment is not None,
                 'poses': plan.poses, 'mean_pose': plan.mean_pose_source}
     return evaluation, settings
@@ -184,6 +185,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json_line(evaluation, settings))
     else:
+        print(f"hand source: {settings['hand_source']}, poses: {settings['poses']}\n")
         print(markdown_tables(evaluation))
         print(sequence_table(evaluation))
     return 0

@@ -191,6 +191,7 @@ def test_cli_json_line_files_and_usage_errors(synth_output: Path, tmp_path: Path
     assert report['sequences'][0]['name'] == 'seq_31'
     assert report['settings']['mean_pose'].startswith('training set (')  # the bundled model's
     assert report['settings']['poses'] == 'final'
+    assert report['settings']['hand_source'] == 'infinihand'  # config/engine.yaml's
     assert read_predictions(out / 'seq_31.npz')['T_world_cam'].shape == (FRAMES, 4, 4)
     for name in ('seq_31_top_view.png', 'seq_31_errors.png'):
         image = cv2.imread(str(out / name))
