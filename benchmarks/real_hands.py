@@ -141,8 +141,7 @@ def _costs(images: list[tuple[np.ndarray, Intrinsics]]) -> dict[str, float]:
                 detector.detect(rgb, index)
                 alone.append(time.perf_counter() - start)
                 start = time.perf_counter()
-                found = source.camera_hands(source.detect(rgb, index), (), intrinsics,
-                                            (rgb.shape[1], rgb.shape[0]))
+                found = source.camera_hands(source.detect(rgb, index), (), intrinsics)
                 full.append(time.perf_counter() - start)
                 hands += len(found) if rounds else 0
     finally:

@@ -349,7 +349,7 @@ class StreamingEngine:
         """Return a record with the hands its hand source gives (and their depth ratios)."""
         frame = record.frame
         hands = self._hand_source.camera_hands(frame.detections, record.hands,
-                                               record.intrinsics, self._source_size)
+                                               record.intrinsics)
         if self._hand_source.uses_hand_branch:  # a subset of the branch's hands: their ratios
             kept = [any(hand is branch for hand in hands) for branch in record.hands]
             ratios = record.depth_ratios[np.array(kept, dtype=bool)]

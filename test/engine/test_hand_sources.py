@@ -94,7 +94,7 @@ def test_the_branch_source_drops_unconfident_hands() -> None:
     """infinihand: hands under hands.min_confidence are not output, and counted."""
     source = InfiniHandSource(HandsConfig(min_confidence=0.6))
     hands = (make_hand(LEFT, confidence=0.55), make_hand(RIGHT, confidence=0.9))
-    kept = source.camera_hands((), hands, K, (640, 480))
+    kept = source.camera_hands((), hands, K)
     assert [hand.side for hand in kept] == [RIGHT]
     assert source.statistics()['dropped_confidence'] == 1
 
@@ -107,9 +107,9 @@ def test_the_guard_keeps_only_hands_mediapipe_confirms() -> None:
         seen = Detection2D(RIGHT, np.array([[5.0, 5.0], [45.0, 45.0]] * 10 + [[20.0, 20.0]]),
                            np.ones(21), 0.9, None)
         other_side = Detection2D(LEFT, seen.joints_2d, np.ones(21), 0.9, None)
-        assert source.camera_hands((seen,), (box_hand,), K, (640, 480)) == (box_hand,)
-        assert source.camera_hands((other_side,), (box_hand,), K, (640, 480)) == ()
-        assert source.camera_hands((), (box_hand,), K, (640, 480)) == ()
+        assert source.camera_hands((seen,), (box_hand,), K) == (box_hand,)
+        assert source.camera_hands((other_side,), (box_hand,), K) == ()
+        assert source.camera_hands((), (box_hand,), K) == ()
         assert source.statistics()['dropped_verify'] == 2
     finally:
         source.close()

@@ -42,8 +42,7 @@ def _still_hands(source: MediaPipeHandSource, frame) -> tuple:
     """Detect on one still as a new stream (the photos are unrelated)."""
     source.reset()
     detections = source.detect(frame.rgb, 0)
-    return source.camera_hands(detections, (), frame.intrinsics,
-                               (frame.rgb.shape[1], frame.rgb.shape[0]))
+    return source.camera_hands(detections, (), frame.intrinsics)
 
 
 def _bone_lengths(joints: np.ndarray) -> np.ndarray:
@@ -173,7 +172,7 @@ def test_hard_images_give_finite_hands_or_none(stills: list, case: str) -> None:
                          width=width, height=height)
     source = _source()
     try:
-        hands = source.camera_hands(source.detect(image, 0), (), intrinsics, (width, height))
+        hands = source.camera_hands(source.detect(image, 0), (), intrinsics)
     finally:
         source.close()
     assert len({hand.side for hand in hands}) == len(hands) <= 2
@@ -213,8 +212,7 @@ def test_minutes_without_hands_stay_empty_and_bounded() -> None:
                          width=160, height=120)
     try:
         for index in range(3000):
-            assert source.camera_hands(source.detect(image, index), (), intrinsics,
-                                       (160, 120)) == ()
+            assert source.camera_hands(source.detect(image, index), (), intrinsics) == ()
         assert source.statistics()['frames'] == 3000 and source.statistics()['hands'] == 0
         assert len(source.reprojection_ratios) == 0
     finally:

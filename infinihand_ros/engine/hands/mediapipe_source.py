@@ -89,8 +89,8 @@ class MediaPipeHandSource:
         return self._detector.detect(image, frame_index)
 
     def camera_hands(self, detections: Sequence[Detection2D],
-                     branch_hands: tuple[HandState, ...], intrinsics: Intrinsics,
-                     image_size: tuple[int, int]) -> tuple[HandState, ...]:
+                     branch_hands: tuple[HandState, ...], intrinsics: Intrinsics
+                     ) -> tuple[HandState, ...]:
         """Return the frame's lifted hands, at most one per side, confident enough."""
         self.counts['frames'] += 1
         confident = [d for d in detections if d.confidence >= self.config.min_confidence]

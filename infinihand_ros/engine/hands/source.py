@@ -44,8 +44,8 @@ class HandSource(Protocol):
         """Look at a pushed frame's source image (RGB uint8); return what camera_hands needs."""
 
     def camera_hands(self, detections: Sequence[Detection2D],
-                     branch_hands: tuple[HandState, ...], intrinsics: Intrinsics,
-                     image_size: tuple[int, int]) -> tuple[HandState, ...]:
+                     branch_hands: tuple[HandState, ...], intrinsics: Intrinsics
+                     ) -> tuple[HandState, ...]:
         """Return the frame's camera-space hands (at most one per side) that count."""
 
     def statistics(self) -> dict[str, object]:
@@ -76,8 +76,8 @@ class InfiniHandSource:
         return () if self._detector is None else self._detector.detect(image, frame_index)
 
     def camera_hands(self, detections: Sequence[Detection2D],
-                     branch_hands: tuple[HandState, ...], intrinsics: Intrinsics,
-                     image_size: tuple[int, int]) -> tuple[HandState, ...]:
+                     branch_hands: tuple[HandState, ...], intrinsics: Intrinsics
+                     ) -> tuple[HandState, ...]:
         """Return the branch's hands that are confident enough (and verified, with the guard)."""
         self.counts['frames'] += 1
         kept = []
