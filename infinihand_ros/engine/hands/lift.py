@@ -106,8 +106,8 @@ def lift_hand(side: int, landmarks_px: np.ndarray, joints_metric: np.ndarray,
         confidence: the source's score in [0, 1].
         intrinsics: the intrinsics of the image (given, fallback or predicted).
         model: the hand model of ``side``.
-        previous: the same hand's parameters in the previous frame (its shape is kept and,
-            with ``refine_iterations``, the fit starts there).
+        previous: the same hand's parameters in the previous frame: its shape is kept (the
+            pose needs no start: the closed-form fit is this frame's own).
         refine_iterations: L-BFGS steps of ``fit_mano`` after the closed-form start (0: none).
 
     """
