@@ -10,6 +10,7 @@ previous hand. The landmark box is the hand's box and MediaPipe's handedness sco
 confidence.
 """
 
+from collections import deque
 from collections.abc import Sequence
 import copy
 from typing import Final
@@ -35,6 +36,8 @@ import torch
 #: ``DUPLICATE_WRIST_FRACTION`` of the hand's box size, are one hand seen twice.
 DUPLICATE_IOU: Final = 0.5
 DUPLICATE_WRIST_FRACTION: Final = 0.25
+#: Recent reprojection errors kept for the statistics.
+RATIOS_KEPT: Final = 1000
 
 
 def is_duplicate(a: Detection2D, b: Detection2D) -> bool:
@@ -82,7 +85,7 @@ class MediaPipeHandSource:
         self._previous: dict[int, ManoParams] = {}
         self.counts = {'frames': 0, 'hands': 0, 'dropped_confidence': 0,
                        'dropped_duplicate': 0}
-        self.reprojection_ratios: list[float] = []
+        self.reprojection_ratios: deque[float] = deque(maxlen=RATIOS_KEPT)
 
     def detect(self, image: np.ndarray, frame_index: int) -> Sequence[Detection2D]:
         """Run MediaPipe on the frame's source image."""
@@ -108,7 +111,6 @@ class MediaPipeHandSource:
             hands.append(lifted.hand)
         for side in set(self._previous) - {hand.side for hand in hands}:
             del self._previous[side]  # a hand that left starts afresh when it comes back
-        self.reprojection_ratios = self.reprojection_ratios[-1000:]
         self.counts['hands'] += len(hands)
         return tuple(sorted(hands, key=lambda hand: hand.side))
 
