@@ -1,14 +1,14 @@
 """Launch the estimator and (by default) the bundle-adjustment node, with their params files.
 
-    ros2 launch infinihand_ros estimator.launch.py [bundle_adjustment:=node|in_process|off]
+    ros2 launch infinihand_ros estimator.launch.py [bundle_adjustment:=node|in_process|none]
         [params_file:=...] [ba_params_file:=...] [namespace:=...] [image:=...]
         [camera_info:=...] [use_sim_time:=true]
 
 For real ROS 2 installs (launch and launch_ros are not among the pip wheels this repository is
 tested with; nothing imports this file there). ``bundle_adjustment:=node`` runs BA in the
 ``bundle_adjustment`` node next to the estimator; ``in_process`` in the estimator's engine;
-``off`` not at all. Both nodes share the namespace, so their ``bundle_adjustment/*`` topics
-meet.
+``none`` not at all (the values of the node's ``engine.bundle_adjustment``). Both nodes share
+the namespace, so their ``bundle_adjustment/*`` topics meet.
 """
 
 from pathlib import Path
@@ -22,7 +22,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 PACKAGE = 'infinihand_ros'
-BA_CHOICES = ['node', 'in_process', 'off']
+BA_CHOICES = ['node', 'in_process', 'none']
 
 
 def generate_launch_description() -> LaunchDescription:

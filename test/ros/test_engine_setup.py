@@ -3,6 +3,7 @@
 from dataclasses import replace
 from pathlib import Path
 
+from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.output.config import SmoothingConfig
@@ -19,14 +20,28 @@ def _node(**selection: object) -> EstimatorConfig:
 
 
 def test_defaults_are_the_engine_file_with_the_node_settings() -> None:
-    """Defaults give config/engine.yaml with the node's MediaPipe hands; mode, BA follow."""
+    """Defaults: config/engine.yaml with MediaPipe hands and config/ba.yaml's in-process BA."""
     node = engine_config_for(_node())
     assert node.hands.source == 'mediapipe' and load_engine_config().hands.source == 'infinihand'
-    assert node == replace(load_engine_config(), hands=node.hands)
+    assert load_engine_config().bundle_adjustment is None
+    assert node.bundle_adjustment == load_ba_config()
+    assert node == replace(load_engine_config(), hands=node.hands,
+                           bundle_adjustment=node.bundle_adjustment)
     config = engine_config_for(_node(mode='windowed', keyframe_interval=3,
-                                     bundle_adjustment='in_process'))
+                                     bundle_adjustment='none'))
     assert (config.mode, config.keyframe_interval) == ('windowed', 3)
-    assert config.bundle_adjustment is not None
+    assert config.bundle_adjustment is None
+
+
+def test_in_process_ba_never_makes_the_node_wait(tmp_path: Path) -> None:
+    """An engine file whose BA waits for room (offline settings) still drops in the node."""
+    engine_file = tmp_path / 'engine.yaml'
+    engine_file.write_text('engine:\n  bundle_adjustment:\n    pool: {trigger: 8, stride: 2}\n'
+                           '    worker: {when_behind: wait}\n')
+    assert load_engine_config(engine_file).bundle_adjustment.worker.when_behind == 'wait'
+    ba = engine_config_for(_node(config=str(engine_file))).bundle_adjustment
+    assert ba.worker.when_behind == 'drop'
+    assert ba.pool.trigger == 8
 
 
 def test_camera_motion_and_output_parameters_reach_the_engine() -> None:

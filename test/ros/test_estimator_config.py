@@ -1,17 +1,20 @@
 """The estimator's parameter tree and its generated params file (ros/estimator/config.py)."""
 
+import ast
 from pathlib import Path
 
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.parameters import parameter_table
 from infinihand_ros.core.parameters import unflatten
+from infinihand_ros.ros.estimator.config import BA_MODES
 from infinihand_ros.ros.estimator.config import estimator_config_from_parameters
 from infinihand_ros.ros.estimator.config import EstimatorConfig
 from infinihand_ros.tools import params_files
 import pytest
 import yaml
 
-CONFIG_DIR = Path(__file__).resolve().parents[2] / 'config'
+ROOT = Path(__file__).resolve().parents[2]
+CONFIG_DIR = ROOT / 'config'
 
 
 def _defaults() -> dict[str, object]:
@@ -45,6 +48,15 @@ def test_every_parameter_is_described_and_numbers_lie_in_their_ranges() -> None:
             assert all(choice in spec.full_description for choice in spec.choices), name
     bundle_adjustment = parameter_table(EstimatorConfig)['engine.bundle_adjustment'][1]
     assert 'off' not in bundle_adjustment.full_description
+
+
+def test_the_launch_file_offers_the_node_ba_modes() -> None:
+    """launch/estimator.launch.py passes only values engine.bundle_adjustment accepts."""
+    tree = ast.parse((ROOT / 'launch' / 'estimator.launch.py').read_text())
+    choices = [ast.literal_eval(statement.value) for statement in tree.body
+               if isinstance(statement, ast.Assign)
+               and [target.id for target in statement.targets] == ['BA_CHOICES']]
+    assert len(choices) == 1 and sorted(choices[0]) == sorted(BA_MODES)
 
 
 def test_unflatten_nests_dotted_names() -> None:

@@ -9,6 +9,7 @@ parameters select the mode, device, checkpoint and BA; ``camera.motion`` is the 
 
 from dataclasses import replace
 from pathlib import Path
+from typing import Final
 
 from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.errors import ConfigError
@@ -18,14 +19,19 @@ from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.output.config import OutputConfig
 from infinihand_ros.ros.estimator.config import EstimatorConfig
 
+#: ``ba.worker.when_behind`` of the node's in-process BA: never wait for room in the queue.
+LIVE_WHEN_BEHIND: Final = 'drop'
+
 
 def engine_config_for(config: EstimatorConfig) -> EngineConfig:
     """Return the engine config the node's parameters describe.
 
-    ``bundle_adjustment: in_process`` keeps the engine file's BA settings, or uses the
-    package's ``config/ba.yaml`` when that file has none; ``none`` and ``node`` (BA in the
-    bundle_adjustment node, through the engine's ``RemoteBA`` backend that the node passes to
-    the engine) run no BA worker in the engine.
+    ``bundle_adjustment: in_process`` (the default) keeps the engine file's BA settings, or uses
+    the package's ``config/ba.yaml`` when that file has none, with ``worker.when_behind: drop``
+    whatever the file says: a live node never waits for BA (a selection that finds the queue
+    full replaces the oldest waiting one). ``none`` and ``node`` (BA in the bundle_adjustment
+    node, through the engine's ``RemoteBA`` backend that the node passes to the engine) run no
+    BA worker in the engine.
 
     Raises:
         ConfigError: naming the parameter (``engine.config``, ``engine.checkpoint``,
@@ -48,6 +54,7 @@ def engine_config_for(config: EstimatorConfig) -> EngineConfig:
     ba = None
     if selection.bundle_adjustment == 'in_process':
         ba = base.bundle_adjustment or load_ba_config()
+        ba = replace(ba, worker=replace(ba.worker, when_behind=LIVE_WHEN_BEHIND))
     output = OutputConfig(config.identity, config.shape, config.smoothing)
     return replace(base, mode=selection.mode, keyframe_interval=selection.keyframe_interval,
                    device=selection.device, model=model, bundle_adjustment=ba,

@@ -7,7 +7,9 @@ inference thread takes the newest one, so frames arriving while the model is bus
 and counted and the latency never grows. A bad frame (encoding, size, truncated data, bad
 CameraInfo) is logged, throttled, counted and skipped. Inputs (relative, remappable):
 ``image``, ``image/compressed``, ``camera_info``, with sensor-data QoS overridable by
-parameters. With ``engine.bundle_adjustment: node`` the engine's ``RemoteBA`` backend offers
+parameters. Bundle adjustment runs by default in the engine's background worker process
+(``engine.bundle_adjustment: in_process``); no frame waits for it, and its corrections move
+later poses. With ``engine.bundle_adjustment: node`` the engine's ``RemoteBA`` backend offers
 keyframes and takes corrections, and ``BANodeClient`` carries them to and from the bundle-
 adjustment node (corrections are folded in before each frame and while no frame comes); without
 that node the poses go on unrefined and diagnostics say so.
