@@ -1,6 +1,6 @@
-"""rclpy messages of the node's outputs, built from the plain fields of ``frame_outputs``.
+"""rclpy messages of the node's outputs, built from the plain fields of ``core.output_fields``.
 
-Only ROS message classes here, no estimation: every number comes from a ``FrameOutput``,
+Only ROS message classes here, no estimation: every number comes from a ``PoseFields``,
 ``MarkerSpec``, ``Intrinsics`` or ``DiagnosticReport``. ``joint_names_msg`` is the comma
 separated list of the 21 joint names in landmark order.
 """
@@ -14,6 +14,9 @@ from geometry_msgs.msg import Pose
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import Quaternion
+from geometry_msgs.msg import Transform
+from geometry_msgs.msg import TransformStamped
+from geometry_msgs.msg import Vector3
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.hand_conventions import JOINT_NAMES
 from infinihand_ros.core.output_fields import PoseFields
@@ -55,6 +58,26 @@ def pose_msg(fields: PoseFields) -> Pose:
 def pose_stamped_msg(stamp_ns: int, frame_id: str, fields: PoseFields) -> PoseStamped:
     """Return a geometry_msgs/PoseStamped."""
     return PoseStamped(header=header(stamp_ns, frame_id), pose=pose_msg(fields))
+
+
+def transform_stamped_msg(stamp_ns: int, parent_frame_id: str, child_frame_id: str,
+                          fields: PoseFields) -> TransformStamped:
+    """Return the TF transform of ``child_frame_id`` in ``parent_frame_id``.
+
+    Args:
+        stamp_ns: the stamp, nanoseconds (the source image's).
+        parent_frame_id: the frame the pose is given in (header.frame_id).
+        child_frame_id: the frame the pose places.
+        fields: the child frame's pose in the parent frame (child-to-parent: its position and
+            axes in the parent frame).
+
+    """
+    x, y, z = (float(v) for v in fields.position)
+    qx, qy, qz, qw = (float(v) for v in fields.orientation_xyzw)
+    return TransformStamped(header=header(stamp_ns, parent_frame_id),
+                            child_frame_id=child_frame_id,
+                            transform=Transform(translation=Vector3(x=x, y=y, z=z),
+                                                rotation=Quaternion(x=qx, y=qy, z=qz, w=qw)))
 
 
 def pose_array_msg(stamp_ns: int, frame_id: str, points: np.ndarray | None) -> PoseArray:

@@ -75,6 +75,9 @@ def test_unflatten_nests_dotted_names() -> None:
     ('smoothing.min_cutoff_hz', 0.0, 'smoothing.min_cutoff_hz'),
     ('shape.min_confidence', 1.5, 'shape.min_confidence'),
     ('frames.world_frame_id', '', 'frames.world_frame_id'),
+    ('frames.right_wrist_frame_id', '', 'frames.right_wrist_frame_id'),
+    ('frames.left_wrist_frame_id', 'world', 'frame ids must differ'),
+    ('tf.enabled', 'yes', 'tf.enabled'),
     ('outputs.path_length', 'long', 'outputs.path_length'),
     ('no.such', 1, 'no'),
 ])

@@ -67,10 +67,26 @@ class FrameIds:
     world_frame_id: str = parameter('world', 'Frame id of every world-frame output.')
     camera_frame_id: str = parameter('', "Camera (optical) frame id; empty: the image header's "
                                      'frame id (an *_optical frame, REP 103).')
+    left_wrist_frame_id: str = parameter('left_wrist', 'Frame id of the left wrist frame (the '
+                                         'orientation of ~/hands/left/wrist_pose): frame of '
+                                         '~/hands/left/wrist_frame_landmarks and its /tf child.')
+    right_wrist_frame_id: str = parameter('right_wrist', 'Frame id of the right wrist frame, as '
+                                          'left_wrist_frame_id for the right hand.')
 
     def __post_init__(self) -> None:
-        if not self.world_frame_id:
-            raise ConfigError('frames.world_frame_id: must not be empty')
+        ids = {'world_frame_id': self.world_frame_id,
+               'left_wrist_frame_id': self.left_wrist_frame_id,
+               'right_wrist_frame_id': self.right_wrist_frame_id}
+        for name, frame_id in ids.items():
+            if not frame_id:
+                raise ConfigError(f'frames.{name}: must not be empty')
+        if len(set(ids.values())) < len(ids):
+            raise ConfigError(f'frames: the world and wrist frame ids must differ (a TF frame '
+                              f'cannot be its own parent), got {ids}')
+
+    def wrist_frame_id(self, side: int) -> str:
+        """Return the frame id of a side's wrist frame (0 left, 1 right)."""
+        return (self.left_wrist_frame_id, self.right_wrist_frame_id)[side]
 
 
 @dataclass(frozen=True)
@@ -135,6 +151,19 @@ class OutputSwitches:
 
 
 @dataclass(frozen=True)
+class TFSettings:
+    """Transforms broadcast on /tf with each frame (parameters ``tf.*``)."""
+
+    enabled: bool = parameter(True, 'Broadcast /tf (tf2_msgs/TFMessage, stamped with the image): '
+                              'world -> camera frame and world -> the wrist frame of each hand '
+                              'published; needs tf2_msgs (a ROS 2 install; said once at start-up '
+                              'when it is missing).')
+    camera: bool = parameter(True, 'Include world -> camera frame (the camera pose); false when '
+                             'another node gives the camera frame its parent (a URDF): a TF '
+                             'frame has one parent.')
+
+
+@dataclass(frozen=True)
 class DiagnosticsConfig:
     """Diagnostics period and statistics window (parameters ``diagnostics.*``)."""
 
@@ -167,6 +196,7 @@ class EstimatorConfig:
     frames: FrameIds = nested(FrameIds)
     camera: CameraSettings = nested(CameraSettings)
     outputs: OutputSwitches = nested(OutputSwitches)
+    tf: TFSettings = nested(TFSettings)
     hands: HandsConfig = nested(lambda: HandsConfig(source=MEDIAPIPE))
     smoothing: SmoothingConfig = nested(SmoothingConfig)
     identity: IdentityConfig = nested(IdentityConfig)

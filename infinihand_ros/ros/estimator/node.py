@@ -93,8 +93,8 @@ class EstimatorNode(Node):
         self._paired_once = False
         self._slot: LatestFrameSlot[tuple[Any, int]] = LatestFrameSlot()
         self._arrivals: OrderedDict[int, int] = OrderedDict()  # image stamp -> arrival, ns
-        self.outputs = OutputPublishers(self, self.config.outputs,
-                                        self.config.frames.world_frame_id)
+        self.outputs = OutputPublishers(self, self.config.outputs, self.config.frames,
+                                        self.config.tf)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
         self._ba_node = (None if remote is None else BANodeClient(
             self, self.config.ba_node, self.config.frames.world_frame_id, remote))

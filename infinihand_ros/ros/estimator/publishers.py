@@ -2,14 +2,24 @@
 
 Every header stamp is the source image's stamp. World-frame outputs carry
 ``frames.world_frame_id``; ``~/camera_info`` the camera's optical frame id; the wrist-frame
-landmarks the frame ``<world>/<side>_wrist`` they are expressed in (the wrist pose gives it).
-Per hand, the fields are ``core.output_fields.HandOutput``; a hand that is not seen (or
-whose wrist frame cannot be formed) gets empty landmark arrays and DELETE markers, and no wrist
-pose.
+landmarks the side's ``frames.*_wrist_frame_id``, the frame they are expressed in (the wrist
+pose gives it). Per hand, the fields are ``core.output_fields.HandOutput``; a hand that is not
+seen (or whose wrist frame cannot be formed) gets empty landmark arrays and DELETE markers, and
+no wrist pose.
+
+``/tf`` (``tf.*``), as teleoperation bridges publish it (``tf2_ros.TransformBroadcaster``'s
+topic and QoS): one ``tf2_msgs/TFMessage`` per frame holding world -> camera frame (the camera
+pose, camera-to-world) and world -> wrist frame of each hand with a wrist pose. ``tf2_msgs``
+has no PyPI wheel: where it cannot be imported the node says so once at start-up and
+publishes everything else.
 """
+
+import importlib
+from typing import Any, Final
 
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
+from geometry_msgs.msg import TransformStamped
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.hand_conventions import SIDES
@@ -17,7 +27,9 @@ from infinihand_ros.core.output_fields import hand_output
 from infinihand_ros.core.output_fields import HandOutput
 from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.ros import msg_builders
+from infinihand_ros.ros.estimator.config import FrameIds
 from infinihand_ros.ros.estimator.config import OutputSwitches
+from infinihand_ros.ros.estimator.config import TFSettings
 from infinihand_ros.vis.markers import hand_markers
 from infinihand_ros.vis.markers import MarkerSpec
 from infinihand_ros.vis.markers import path_marker
@@ -37,19 +49,62 @@ OUTPUT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
                          durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
+#: /tf as ``tf2_ros.TransformBroadcaster`` publishes it (its QoS: reliable, volatile, 100 deep).
+TF_TOPIC: Final = '/tf'
+TF_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+TF_MODULE: Final = 'tf2_msgs.msg'
 
-def wrist_frame_id(world_frame_id: str, side: int) -> str:
-    """Return the frame id of a side's wrist frame."""
-    return f'{world_frame_id}/{SIDE_NAMES[side]}_wrist'
+
+def tf_message_type() -> Any | None:
+    """Return the ``tf2_msgs/TFMessage`` class, or None where tf2_msgs cannot be imported."""
+    try:
+        return importlib.import_module(TF_MODULE).TFMessage
+    except ImportError:
+        return None
+
+
+def frame_transforms(result: FrameResult, hands: dict[int, HandOutput | None],
+                     frames: FrameIds, camera_frame_id: str | None) -> list[TransformStamped]:
+    """Return the /tf transforms of one frame, stamped with its image.
+
+    Args:
+        result: the engine's result of the frame (stamp, camera pose).
+        hands: each side's published outputs (None: not seen, no transform).
+        frames: the world and wrist frame ids.
+        camera_frame_id: the camera's optical frame id; None (or the world frame's id, as for
+            a static camera whose frame is the world) leaves world -> camera out.
+
+    Returns:
+        world -> camera frame (camera-to-world pose), then world -> wrist frame per seen hand
+        (the wrist pose: the joint's position, the wrist frame's axes).
+
+    """
+    stamp, world = result.timestamp_ns, frames.world_frame_id
+    transforms = []
+    if camera_frame_id is not None and camera_frame_id != world:
+        transforms.append(msg_builders.transform_stamped_msg(
+            stamp, world, camera_frame_id, PoseFields.from_camera_pose(result.camera_pose)))
+    for side in SIDES:
+        hand = hands[side]
+        if hand is not None:
+            transforms.append(msg_builders.transform_stamped_msg(
+                stamp, world, frames.wrist_frame_id(side), hand.wrist_pose))
+    return transforms
 
 
 class OutputPublishers:
     """Creates the node's output publishers and publishes frame outputs on them."""
 
-    def __init__(self, node: Node, switches: OutputSwitches, world_frame_id: str) -> None:
-        """Create the publishers the switches ask for (and the latched joint names)."""
+    def __init__(self, node: Node, switches: OutputSwitches, frames: FrameIds,
+                 tf: TFSettings) -> None:
+        """Create the publishers the switches ask for (and the latched joint names).
+
+        With ``tf.enabled`` but no tf2_msgs, logs once that /tf is not broadcast and why.
+        """
         self.switches = switches
-        self.world = world_frame_id
+        self.frames = frames
+        self.world = frames.world_frame_id
+        self.tf = tf
         create = node.create_publisher
         self.camera_pose = create(PoseStamped, '~/camera_pose', OUTPUT_QOS)
         self.camera_path = create(Path, '~/camera_path', LATCHED_QOS)
@@ -63,6 +118,14 @@ class OutputPublishers:
             for side, name in zip(SIDES, SIDE_NAMES)}
         self.joint_names = create(String, '~/hands/joint_names', LATCHED_QOS)
         self.joint_names.publish(msg_builders.joint_names_msg())
+        tf_message = tf_message_type() if tf.enabled else None
+        self._tf_message = tf_message
+        self.transforms = None if tf_message is None else create(tf_message, TF_TOPIC, TF_QOS)
+        if tf.enabled and tf_message is None:
+            node.get_logger().warning(
+                f'not broadcasting TF on {TF_TOPIC}: {TF_MODULE} cannot be imported (the PyPI '
+                'ROS 2 wheels have no tf2_msgs); run in a sourced ROS 2 Jazzy install (or '
+                'install ros-jazzy-tf2-msgs there), or set tf.enabled:=false')
 
     def publish(self, result: FrameResult, camera_frame_id: str,
                 path: list[tuple[int, PoseFields]] | None) -> None:
@@ -70,7 +133,7 @@ class OutputPublishers:
 
         Args:
             result: the engine's result of the frame.
-            camera_frame_id: frame id of ``~/camera_info``.
+            camera_frame_id: frame id of ``~/camera_info`` and the camera's /tf frame.
             path: the camera path's (stamp, pose) pairs up to this frame, to publish with it
                 (None: the path is not published with this frame).
 
@@ -95,6 +158,11 @@ class OutputPublishers:
             if path is not None:
                 specs.append(path_marker(np.array([pose.position for _, pose in path])))
             self.markers.publish(msg_builders.marker_array_msg(stamp, self.world, specs))
+        if self.transforms is not None:
+            transforms = frame_transforms(result, hands, self.frames,
+                                          camera_frame_id if self.tf.camera else None)
+            if transforms:
+                self.transforms.publish(self._tf_message(transforms=transforms))
 
     def _publish_hands(self, stamp: int, hands: dict[int, HandOutput | None]) -> None:
         """Publish each side's wrist pose and landmark arrays (empty when not seen)."""
@@ -106,5 +174,5 @@ class OutputPublishers:
             publishers['landmarks'].publish(msg_builders.pose_array_msg(
                 stamp, self.world, None if hand is None else hand.landmarks_world))
             publishers['wrist_frame_landmarks'].publish(msg_builders.pose_array_msg(
-                stamp, wrist_frame_id(self.world, side),
+                stamp, self.frames.wrist_frame_id(side),
                 None if hand is None else hand.wrist_frame_landmarks))

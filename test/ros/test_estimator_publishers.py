@@ -1,0 +1,192 @@
+"""The estimator's /tf transforms and their broadcast (ros/estimator/publishers.py).
+
+``tf2_msgs`` has no PyPI wheel: the broadcast is tested with a stand-in ``tf2_msgs.msg`` module
+(its ``TFMessage`` holds ``transforms`` as the real one does) and the missing case by hiding the
+module; the node is a stand-in that records its publishers and log lines.
+"""
+
+from dataclasses import dataclass
+from dataclasses import field
+import sys
+import types
+
+from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.core.output_fields import hand_output
+from infinihand_ros.ros.estimator.config import FrameIds
+from infinihand_ros.ros.estimator.config import OutputSwitches
+from infinihand_ros.ros.estimator.config import TFSettings
+import numpy as np
+import pytest
+from result_builders import make_hand
+from result_builders import make_result
+from result_builders import PALM_JOINTS
+from result_builders import PALM_RIGHT_WRIST_ROTATION
+
+publishers = pytest.importorskip('infinihand_ros.ros.estimator.publishers',
+                                 reason='rclpy messages are not importable')
+
+pytestmark = pytest.mark.ros
+STAMP = 1_767_225_600_123_456_789
+#: Camera turned 90 degrees about z (x -> y), at (1, 2, 3): quaternion (0, 0, sin 45, cos 45).
+CAMERA = CameraPose(np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]),
+                    np.array([1.0, 2.0, 3.0]))
+CAMERA_XYZW = [0.0, 0.0, np.sqrt(0.5), np.sqrt(0.5)]
+#: The right palm turned 90 degrees about x (y -> z) and moved to (0.4, 0.1, 0.5).
+HAND_ROTATION = np.array([[1.0, 0.0, 0.0], [0.0, 0.0, -1.0], [0.0, 1.0, 0.0]])
+HAND_POSITION = np.array([0.4, 0.1, 0.5])
+FRAMES = FrameIds(left_wrist_frame_id='operator/left_wrist',
+                  right_wrist_frame_id='operator/right_wrist')
+
+
+def _rotation(q) -> np.ndarray:
+    """Return the rotation matrix of a geometry_msgs quaternion (textbook formula)."""
+    x, y, z, w = q.x, q.y, q.z, q.w
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)],
+                     [2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)],
+                     [2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)]])
+
+
+def _vector(v) -> np.ndarray:
+    return np.array([v.x, v.y, v.z])
+
+
+def _result():
+    """Return a frame with the camera pose above, the right hand seen and the left not."""
+    right = make_hand(RIGHT, joints_world=PALM_JOINTS @ HAND_ROTATION.T + HAND_POSITION)
+    left = make_hand(LEFT, joints_world=None)  # detected, but not placed in the world
+    return make_result(STAMP, (left, right), pose=CAMERA)
+
+
+def _hands(result) -> dict:
+    return {side: None if result.hand(side) is None else hand_output(result.hand(side))
+            for side in (LEFT, RIGHT)}
+
+
+def test_transforms_are_the_camera_pose_and_the_wrist_pose() -> None:
+    """World -> camera is camera-to-world, world -> wrist the wrist frame; xyzw; image stamp."""
+    result = _result()
+    hands = _hands(result)
+    assert hands[LEFT] is None
+    camera, wrist = publishers.frame_transforms(result, hands, FRAMES, 'head_camera_optical')
+    for transform in (camera, wrist):
+        assert (transform.header.stamp.sec, transform.header.stamp.nanosec) == (
+            1_767_225_600, 123_456_789)
+        assert transform.header.frame_id == 'world'
+    assert camera.child_frame_id == 'head_camera_optical'
+    rotation = camera.transform.rotation
+    np.testing.assert_allclose([rotation.x, rotation.y, rotation.z, rotation.w], CAMERA_XYZW,
+                               atol=1e-12)
+    np.testing.assert_allclose(_vector(camera.transform.translation), [1.0, 2.0, 3.0])
+    assert wrist.child_frame_id == 'operator/right_wrist'
+    np.testing.assert_allclose(_vector(wrist.transform.translation), HAND_POSITION, atol=1e-12)
+    np.testing.assert_allclose(_rotation(wrist.transform.rotation),
+                               HAND_ROTATION @ PALM_RIGHT_WRIST_ROTATION, atol=1e-12)
+    # What a TF listener does with the wrist-frame landmarks: back to the world landmarks.
+    in_world = (hands[RIGHT].wrist_frame_landmarks @ _rotation(wrist.transform.rotation).T
+                + _vector(wrist.transform.translation))
+    np.testing.assert_allclose(in_world, hands[RIGHT].landmarks_world, atol=1e-12)
+
+
+def test_camera_transform_left_out_when_asked_or_when_it_is_the_world() -> None:
+    """No camera frame, or the world's own id (a static camera as world): wrists only."""
+    result = _result()
+    for camera_frame in (None, 'world'):
+        transforms = publishers.frame_transforms(result, _hands(result), FRAMES, camera_frame)
+        assert [t.child_frame_id for t in transforms] == ['operator/right_wrist']
+
+
+@dataclass
+class _Publisher:
+    msg_type: type
+    topic: str
+    qos: object
+    sent: list = field(default_factory=list)
+
+    def publish(self, msg: object) -> None:
+        self.sent.append(msg)
+
+
+@dataclass
+class _Logger:
+    warnings: list = field(default_factory=list)
+
+    def warning(self, text: str, **_: object) -> None:
+        self.warnings.append(text)
+
+
+@dataclass
+class _Node:
+    """The two things OutputPublishers asks of its node: publishers and a logger."""
+
+    publishers: dict = field(default_factory=dict)
+    logger: _Logger = field(default_factory=_Logger)
+
+    def create_publisher(self, msg_type: type, topic: str, qos: object) -> _Publisher:
+        self.publishers[topic] = _Publisher(msg_type, topic, qos)
+        return self.publishers[topic]
+
+    def get_logger(self) -> _Logger:
+        return self.logger
+
+
+@dataclass
+class _TFMessage:
+    transforms: list
+
+
+@pytest.fixture
+def fake_tf2_msgs(monkeypatch: pytest.MonkeyPatch) -> type:
+    """Make ``tf2_msgs.msg`` importable with a stand-in TFMessage; return that class."""
+    module = types.ModuleType('tf2_msgs.msg')
+    module.TFMessage = _TFMessage
+    monkeypatch.setitem(sys.modules, 'tf2_msgs.msg', module)
+    return _TFMessage
+
+
+def _publish_frames(tf: TFSettings, count: int = 3) -> _Node:
+    """Publish ``count`` frames through OutputPublishers on a stand-in node; return it."""
+    node = _Node()
+    outputs = publishers.OutputPublishers(node, OutputSwitches(), FRAMES, tf)
+    for _ in range(count):
+        outputs.publish(_result(), 'head_camera_optical', None)
+    return node
+
+
+def test_without_tf2_msgs_it_says_so_once_and_publishes_the_rest(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """One start-up line naming tf2_msgs and the switch; no /tf; the other outputs go on."""
+    monkeypatch.setitem(sys.modules, 'tf2_msgs.msg', None)  # import fails as without ROS
+    node = _publish_frames(TFSettings())
+    assert len(node.logger.warnings) == 1
+    line = node.logger.warnings[0]
+    assert 'not broadcasting TF on /tf' in line and 'tf2_msgs' in line
+    assert 'tf.enabled:=false' in line
+    assert publishers.TF_TOPIC not in node.publishers
+    assert len(node.publishers['~/camera_pose'].sent) == 3
+    # Wrist-frame landmarks are stamped with the frame the TF would give.
+    landmarks = node.publishers['~/hands/right/wrist_frame_landmarks'].sent[-1]
+    assert landmarks.header.frame_id == 'operator/right_wrist'
+
+
+def test_with_tf2_msgs_each_frame_is_one_tf_message(fake_tf2_msgs: type) -> None:
+    """A TFMessage per frame on /tf with tf2_ros's QoS: camera and the seen wrist; no log."""
+    node = _publish_frames(TFSettings())
+    assert node.logger.warnings == []
+    tf = node.publishers[publishers.TF_TOPIC]
+    assert tf.msg_type is fake_tf2_msgs and tf.qos.depth == 100
+    assert len(tf.sent) == 3
+    assert [t.child_frame_id for t in tf.sent[-1].transforms] == [
+        'head_camera_optical', 'operator/right_wrist']
+    np.testing.assert_allclose(_vector(tf.sent[-1].transforms[0].transform.translation),
+                               [1.0, 2.0, 3.0])
+
+
+def test_tf_switches(fake_tf2_msgs: type) -> None:
+    """tf.camera false: wrists only; tf.enabled false: no /tf publisher and nothing said."""
+    wrists_only = _publish_frames(TFSettings(camera=False)).publishers[publishers.TF_TOPIC]
+    assert [t.child_frame_id for t in wrists_only.sent[-1].transforms] == [
+        'operator/right_wrist']
+    off = _publish_frames(TFSettings(enabled=False))
+    assert publishers.TF_TOPIC not in off.publishers and off.logger.warnings == []
