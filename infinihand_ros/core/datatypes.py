@@ -238,6 +238,9 @@ class FrameResult:
             changes whenever the metric scale or BA corrections change; 0 for the first).
         hand_source: where the hands came from ('infinihand': the paper's hand branch;
             'mediapipe': MediaPipe Hands lifted to MANO).
+        tracking: how the camera pose was found: 'tracked' (measured in the image),
+            'predicted' (the network's motion: too little to track), 'reinitialised' (the
+            track restarted here: a discontinuity, e.g. a cut) or 'static' (a fixed camera).
 
     """
 
@@ -252,6 +255,7 @@ class FrameResult:
     raw_camera_pose: CameraPose | None = None
     pose_version: int = 0
     hand_source: str = 'infinihand'
+    tracking: str = 'predicted'
 
     def __post_init__(self) -> None:
         sides = [hand.side for hand in self.hands]

@@ -3,7 +3,8 @@
 ``split_frames`` turns one ``CameraSpaceOutput`` into one ``CameraSpaceFrame`` per frame: the raw
 network pose (model units), the intrinsics used (source image), the detected hands in the camera
 frame (2D joints and boxes mapped back to source pixels), each hand's metric-to-model depth
-ratio for the scale estimate, and, for keyframes, the model depth map at the source size. No
+ratio for the scale estimate, for keyframes the model depth map at the source size, and what
+the camera tracker sees (the model-input grey image with its depth and intrinsics). No
 world frame and no metric scale here: those are the pose track's (``engine/pose_track.py``) and
 ``engine/world_placement.py``'s.
 """
@@ -13,6 +14,7 @@ from dataclasses import dataclass
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.datatypes import ManoParams
+from infinihand_ros.engine.camera_tracker import TrackingView
 from infinihand_ros.engine.frame_input import FrameMapping
 from infinihand_ros.engine.metric_scale import hand_depth_ratios
 from infinihand_ros.model.geometry_model import GeometryOutput
@@ -60,6 +62,8 @@ class CameraSpaceFrame:
         depth_ratios: (N,) per hand, metric joint depth / model depth (median over joints).
         depth_model: (H, W) float32 model-unit depth at the source size for keyframes, else
             None (pixels a crop cut away are NaN).
+        view: what the camera tracker needs (model-input grey image, depth, intrinsics),
+            without hand boxes yet.
 
     """
 
@@ -69,6 +73,20 @@ class CameraSpaceFrame:
     hands: tuple[HandState, ...]
     depth_ratios: np.ndarray
     depth_model: np.ndarray | None
+    view: TrackingView
+
+
+def tracking_view(frame: PreparedFrame, depth: torch.Tensor, intrinsics_model: np.ndarray
+                  ) -> TrackingView:
+    """Return the tracker's view of a frame: grey model input, (H, W) depth, (3, 3) K."""
+    height, width = depth.shape[-2:]
+    weights = torch.tensor([0.299, 0.587, 0.114], dtype=frame.pixels.dtype,
+                           device=frame.pixels.device)
+    gray = torch.tensordot(weights, frame.pixels, dims=1).mul(255.0).round().clamp(0, 255)
+    return TrackingView(gray.to(torch.uint8).cpu().numpy(),
+                        depth.detach().float().cpu().numpy(),
+                        Intrinsics.from_matrix(intrinsics_model, width, height),
+                        frame.mapping.content_box, np.zeros((0, 4)))
 
 
 def _numpy(tensor: torch.Tensor) -> np.ndarray:
@@ -110,7 +128,9 @@ def split_frames(output: CameraSpaceOutput, frames: list[PreparedFrame]
         if frame.keyframe:
             depth = mapping.map_to_source(
                 output.geometry.depth[0, row].detach().float().cpu().numpy())
-        records.append(CameraSpaceFrame(frame, poses[row], used, states, ratios[rows], depth))
+        view = tracking_view(frame, output.geometry.depth[0, row], intrinsics[row])
+        records.append(CameraSpaceFrame(frame, poses[row], used, states, ratios[rows], depth,
+                                        view))
     return records
 
 
@@ -133,7 +153,8 @@ def split_geometry(geometry: GeometryOutput, T_world_cam: torch.Tensor,
         if frame.keyframe:
             depth = frame.mapping.map_to_source(geometry.depth[0, row].detach().float().cpu()
                                                 .numpy())
-        records.append(CameraSpaceFrame(frame, poses[row], used, (), np.zeros(0), depth))
+        view = tracking_view(frame, geometry.depth[0, row], matrices[row])
+        records.append(CameraSpaceFrame(frame, poses[row], used, (), np.zeros(0), depth, view))
     return records
 
 

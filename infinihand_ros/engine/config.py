@@ -1,8 +1,8 @@
 """Settings of the streaming engine: one tree, validated at load (``config/engine.yaml``).
 
 ``engine`` -> ``model`` (geometry and hand-branch configs, hand model incl. real MANO, weights)
--> ``detection`` -> ``metric_scale`` -> ``pose_track`` -> ``bundle_adjustment`` (BA settings,
-or null for none). Every value is checked when the file is loaded; errors name the key, e.g.
+-> ``detection`` -> ``metric_scale`` -> ``pose_track`` -> ``tracker`` -> ``bundle_adjustment``
+(BA settings, or null for none). Every value is checked when the file is loaded; errors name the key, e.g.
 ``engine.model.hand_model.mano_dir`` or ``engine.bundle_adjustment.tracking.klt_window_px``.
 In YAML, ``bundle_adjustment`` may be ``null`` (off), ``true`` (the package's
 ``config/ba.yaml``), a path to a BA YAML file, or the BA settings themselves.
@@ -20,6 +20,7 @@ from infinihand_ros.core.config import config_from_dict
 from infinihand_ros.core.config import read_yaml
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.engine.camera_tracker import TrackerConfig
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.output.config import OutputConfig
@@ -144,6 +145,7 @@ class EngineConfig:
         detection: hand detection thresholds and the FoV clamp.
         metric_scale: running metric-scale estimate from the hands.
         pose_track: the pose track's memory and scale smoothing.
+        tracker: the per-frame camera tracker (the pose track's front end).
         bundle_adjustment: sparse BA settings (BA runs in the background and corrects the
             poses), or None for no BA.
         camera_motion: 'estimate' (a moving camera) or 'static' (a fixed camera: its pose is
@@ -162,6 +164,7 @@ class EngineConfig:
     detection: DetectionConfig = field(default_factory=DetectionConfig)
     metric_scale: MetricScaleConfig = field(default_factory=MetricScaleConfig)
     pose_track: PoseTrackConfig = field(default_factory=PoseTrackConfig)
+    tracker: TrackerConfig = field(default_factory=TrackerConfig)
     bundle_adjustment: BAConfig | None = None
     camera_motion: str = 'estimate'
     output: OutputConfig = field(default_factory=OutputConfig)

@@ -1,9 +1,11 @@
-"""The one authority for camera poses: raw network poses, the metric scale and BA corrections.
+"""The one authority for camera poses: tracked raw poses, the metric scale and BA corrections.
 
-Per frame the track keeps the raw camera-to-world pose the network predicted (model units),
+Per frame the track keeps a raw camera-to-world pose (model units). The network's pose is
 re-anchored so that the world is exactly the first frame's camera (the project's convention and
-the paper's eq. 9): ``T_raw = T_net(0)^-1 T_net(t)``, so the first pose is the identity even
-when the camera head's prediction for the first anchor is not quite. The
+the paper's eq. 9): ``T_net(0)^-1 T_net(t)``, so the first pose is the identity even when the
+camera head's prediction for the first anchor is not quite; the per-frame tracker
+(``engine/camera_tracker.py``, the track's front end) then measures the pose from the image,
+with that network pose as its prior and fallback, giving ``T_raw``. The
 best pose of a frame is ``D(t) @ S(s) @ T_raw``: ``S(s)`` scales the translation by the
 trajectory's metric scale ``s`` (metres per model unit; one value for the whole track, so every
 frame is rescaled together, never frame by frame) and ``D(t)`` is the bundle-adjustment
@@ -28,6 +30,9 @@ from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.geometry import invert_transform
+from infinihand_ros.engine.camera_tracker import CameraTracker
+from infinihand_ros.engine.camera_tracker import TrackerConfig
+from infinihand_ros.engine.camera_tracker import TrackingView
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.metric_scale import MetricScaleEstimator
 from infinihand_ros.engine.metric_scale import ScaleEstimate
@@ -77,6 +82,7 @@ class TrackedPose:
         scaled_pose: the metrically scaled raw pose, before BA corrections.
         scale: metres per model unit used.
         version: the track's version when the pose was read.
+        tracking: how the raw pose was found (``camera_tracker.TRACKING_STATES``).
 
     """
 
@@ -84,28 +90,32 @@ class TrackedPose:
     scaled_pose: CameraPose
     scale: float
     version: int
+    tracking: str
 
 
 @dataclass(frozen=True)
 class _Entry:
     timestamp_ns: int
     T_raw: np.ndarray
+    tracking: str
 
 
 class PoseTrack:
     """Raw poses, one metric scale and BA corrections of one stream (not thread-safe)."""
 
     def __init__(self, config: PoseTrackConfig, scale_config: MetricScaleConfig,
-                 blend_s: float = 0.0) -> None:
+                 blend_s: float = 0.0, tracker_config: TrackerConfig | None = None) -> None:
         """Start an empty track.
 
         Args:
             config: capacity and scale smoothing.
             scale_config: the running metric-scale estimate's settings.
             blend_s: frame time over which live frames blend into a new BA correction.
+            tracker_config: the per-frame tracker's settings (None: the defaults).
 
         """
         self.config = config
+        self.tracker = CameraTracker(tracker_config or TrackerConfig())
         self.estimator = MetricScaleEstimator(scale_config)
         self.corrections = CorrectionTrack(blend_s)
         self._entries: OrderedDict[int, _Entry] = OrderedDict()
@@ -133,14 +143,21 @@ class PoseTrack:
         """Return the estimator's current estimate (what the applied scale follows)."""
         return self.estimator.estimate()
 
-    def add(self, frame_index: int, timestamp_ns: int, T_raw: np.ndarray) -> None:
-        """Record a frame's network camera-to-world pose (4, 4), model units (re-anchored)."""
-        T_network = np.array(T_raw, dtype=np.float64)
+    def add(self, frame_index: int, timestamp_ns: int, T_network: np.ndarray,
+            view: TrackingView | None = None) -> str:
+        """Record a frame: its network camera-to-world pose (4, 4, model units) and image.
+
+        The tracker measures the frame's pose in ``view`` (without one, the network's motion
+        is used). Returns how the pose was found (``camera_tracker.TRACKING_STATES``).
+        """
+        T_network = np.array(T_network, dtype=np.float64)
         if self._world_from_network is None:
             self._world_from_network = invert_transform(T_network)
-        self._entries[frame_index] = _Entry(timestamp_ns, self._world_from_network @ T_network)
+        tracked = self.tracker.track(view, self._world_from_network @ T_network)
+        self._entries[frame_index] = _Entry(timestamp_ns, tracked.T_raw, tracked.state)
         while len(self._entries) > self.config.capacity:
             self._entries.popitem(last=False)
+        return tracked.state
 
     def observe_scale(self, metric_depths: np.ndarray, model_depths: np.ndarray) -> None:
         """Feed hand depths (m) and model depths at the same pixels; update the applied scale."""
@@ -185,14 +202,14 @@ class PoseTrack:
         entry = self._entries[frame_index]
         scaled = self.scaled(frame_index)
         if not len(self.corrections):
-            return TrackedPose(scaled, scaled, self._scale, self.version)
+            return TrackedPose(scaled, scaled, self._scale, self.version, entry.tracking)
         matrix = scaled.matrix()
         corrected = (self.corrections.correct_live(entry.timestamp_ns, matrix) if live
                      else self.corrections.correct(np.array([entry.timestamp_ns]),
                                                    matrix[None])[0])
         # Corrections are rigid; re-orthonormalise away the rounding of their interpolation.
         pose = CameraPose(Rotation.from_matrix(corrected[:3, :3]).as_matrix(), corrected[:3, 3])
-        return TrackedPose(pose, scaled, self._scale, self.version)
+        return TrackedPose(pose, scaled, self._scale, self.version, entry.tracking)
 
     def _set_scale(self, scale: float) -> None:
         self._scale = float(scale)

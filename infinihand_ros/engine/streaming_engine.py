@@ -3,7 +3,8 @@
 Data flows one way. Each frame is checked and fitted to the model (``frame_input``), then the
 paper's camera-space pass (``InfiniHandModel``: geometry through the streaming memory, poses,
 boxes from masks, hand branch) runs per block. Frame by frame, in order, the camera-space record
-then goes to the pose track (raw pose, metric scale from the hands, BA corrections), to the
+then goes to the pose track (its per-frame tracker measures the pose in the image, with the
+network's pose as prior; metric scale from the hands; BA corrections), to the
 bundle-adjustment backend (keyframes; ``engine/ba_backend.py``), its hands are placed in the
 world once, with the track's best pose (the identity with ``camera_motion: static``), and the
 output stage (``engine/output/``: identity, shared shape, smoothing) gives the result every
@@ -124,12 +125,13 @@ class StreamingEngine:
         ba = self.config.bundle_adjustment
         blend_s = (self.config.pose_track.correction_blend_s if ba is None
                    else ba.corrections.blend_s)
-        self.pose_track = PoseTrack(self.config.pose_track, self.config.metric_scale, blend_s)
+        self.pose_track = PoseTrack(self.config.pose_track, self.config.metric_scale, blend_s,
+                                    self.config.tracker)
         self._output.reset()
 
     @property
     def statistics(self) -> dict[str, object]:
-        """Return frames pushed, windows decoding, the metric scale, the pose version, BA's."""
+        """Return frames pushed, windows decoding, scale, pose version, tracker and BA figures."""
         estimate = self.pose_track.scale_estimate()
         return {'frames_pushed': self._frames_pushed,
                 'windows_in_flight': sum(not future.done() for future in self._decoding),
@@ -138,6 +140,7 @@ class StreamingEngine:
                 'metric_scale_uncertainty': estimate.uncertainty,
                 'metric_scale_state': self.pose_track.scale_state,
                 'pose_version': self.pose_track.version,
+                'tracker': self.pose_track.tracker.statistics(),
                 'ba': None if self._ba is None else self._ba.statistics(),
                 'hands': self._hand_source.statistics()}
 
@@ -386,7 +389,12 @@ class StreamingEngine:
         """Track the frame's pose, feed BA, place its hands in the world: its final result."""
         frame = record.frame
         track = self.pose_track
-        track.add(frame.index, frame.timestamp_ns, record.T_raw)
+        view = None
+        if not self.static:
+            boxes = [frame.mapping.points_to_model(hand.box_xyxy.reshape(2, 2)).reshape(4)
+                     for hand in record.hands]
+            view = dataclasses.replace(record.view, hand_boxes=np.array(boxes).reshape(-1, 4))
+        track.add(frame.index, frame.timestamp_ns, record.T_raw, view)
         track.observe_scale(record.depth_ratios, np.ones(len(record.depth_ratios)))
         depth = None if record.depth_model is None else record.depth_model * track.scale
         if self._ba is not None:
@@ -422,7 +430,8 @@ class StreamingEngine:
         return {'camera_pose': pose,
                 'hands': place_in_world(hands, pose), 'metric_scale': best.scale,
                 'raw_camera_pose': best.scaled_pose if self._ba is not None else None,
-                'pose_version': best.version}
+                'pose_version': best.version,
+                'tracking': 'static' if self.static else best.tracking}
 
     def _checkpoint_name(self) -> str:
         """Return what the weights came from, for error messages."""

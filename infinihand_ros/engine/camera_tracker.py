@@ -1,0 +1,330 @@
+"""Per-frame camera tracking: the image-based front end of the pose track.
+
+The network's camera drifts within seconds, and a bundle-adjustment result corrects only the
+frames after it arrives, so every frame's pose is measured from the image itself. A reference
+frame's corners (off the hands, where the network's depth is valid) are lifted to 3D points in
+the reference camera (model units) and followed by pyramidal KLT from the last tracked frame
+to each new one (forward-backward checked); PnP with RANSAC on those points gives the frame's
+pose relative to the reference, started from the network's relative motion (the prior) and
+refined on the inliers. When too few points hold (a textureless, blurred or covered frame) the
+network's motion since the previous frame is used instead (``predicted``), and the next frame is
+tracked from the last tracked one. When the points are lost at once while the new frame is as
+sharp as the reference (a cut to another scene, not motion blur), or for ``max_lost_frames`` in
+a row, the track restarts on that frame (``reinitialised``: the pose keeps the network's motion
+and the frame marks the discontinuity). The reference moves to the current frame once too few
+of its points are left.
+
+Everything runs on the model-input image (grey, with the model's depth and intrinsics for it),
+in the network's model units, so the metric scale and BA corrections apply on top unchanged.
+"""
+
+from collections import Counter
+from dataclasses import dataclass
+import time
+from typing import Final
+
+import cv2
+from infinihand_ros.core.config import require_at_least
+from infinihand_ros.core.config import require_positive
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.core.geometry import invert_transform
+from infinihand_ros.core.geometry import make_transform
+import numpy as np
+
+#: Per-frame states: measured by PnP; predicted by the network (too few points); a new start.
+TRACKING_STATES: Final = ('tracked', 'predicted', 'reinitialised')
+
+
+@dataclass(frozen=True)
+class TrackerConfig:
+    """Settings of the per-frame camera tracker (section ``engine.tracker``).
+
+    Attributes:
+        enabled: measure each frame's pose from the image (false: the network's poses as they
+            are).
+        max_corners: corners taken on a reference frame.
+        corner_quality: minimum corner quality, relative to the frame's best corner.
+        min_corner_distance_px: corners at least this far apart (model-input pixels).
+        hand_margin_px: hand boxes grown by this much are never tracked (hands move on
+            their own).
+        klt_window_px: KLT window size (pixels, odd).
+        klt_levels: KLT pyramid levels above the image.
+        forward_backward_px: a point is kept only when tracking it back lands this close.
+        ransac_px: PnP RANSAC inlier threshold (reprojection error, pixels).
+        min_inliers: fewer inliers: the network's motion is used for the frame.
+        refresh_fraction: a new reference is taken once fewer than this fraction of the
+            reference's points are inliers.
+        cut_fraction: a scene cut: fewer than this fraction of the points survive KLT while the
+            new frame has at least ``min_inliers`` corners.
+        max_step_deg: a PnP pose rotated more than this from the prior is refused (a wrong
+            solution); the prior is used.
+        blur_ratio: a frame whose sharpness (variance of the Laplacian) is below this fraction
+            of the reference's is blurred: losing the points there is no cut.
+        max_lost_frames: after this many frames in a row without tracking, the track restarts
+            on the next frame with texture.
+
+    """
+
+    enabled: bool = True
+    max_corners: int = 300
+    corner_quality: float = 0.01
+    min_corner_distance_px: float = 7.0
+    hand_margin_px: int = 8
+    klt_window_px: int = 21
+    klt_levels: int = 3
+    forward_backward_px: float = 1.0
+    ransac_px: float = 2.0
+    min_inliers: int = 20
+    refresh_fraction: float = 0.5
+    cut_fraction: float = 0.2
+    max_step_deg: float = 30.0
+    blur_ratio: float = 0.5
+    max_lost_frames: int = 3
+
+    def __post_init__(self) -> None:
+        require_at_least('engine.tracker', 4, max_corners=self.max_corners,
+                         min_inliers=self.min_inliers)
+        require_at_least('engine.tracker', 0, hand_margin_px=self.hand_margin_px,
+                         klt_levels=self.klt_levels)
+        require_at_least('engine.tracker', 1, max_lost_frames=self.max_lost_frames)
+        require_positive('engine.tracker', corner_quality=self.corner_quality,
+                         min_corner_distance_px=self.min_corner_distance_px,
+                         forward_backward_px=self.forward_backward_px,
+                         ransac_px=self.ransac_px, max_step_deg=self.max_step_deg)
+        if self.klt_window_px < 3 or self.klt_window_px % 2 == 0:
+            raise ConfigError(f'engine.tracker.klt_window_px must be an odd number >= 3, got '
+                              f'{self.klt_window_px}')
+        for key in ('corner_quality', 'refresh_fraction', 'cut_fraction', 'blur_ratio'):
+            if not 0.0 <= getattr(self, key) < 1.0:
+                raise ConfigError(f'engine.tracker.{key} must be in [0, 1), got '
+                                  f'{getattr(self, key)}')
+
+
+@dataclass(frozen=True)
+class TrackingView:
+    """What the tracker sees of one frame (model-input pixels).
+
+    Attributes:
+        gray: (H, W) uint8 grey model-input image.
+        depth: (H, W) float32 network depth, model units.
+        intrinsics: the model-input intrinsics the network used.
+        content_box: (x0, y0, x1, y1) pixels holding image content (the rest is padding).
+        hand_boxes: (N, 4) hand boxes (x0, y0, x1, y1), pixels.
+
+    """
+
+    gray: np.ndarray
+    depth: np.ndarray
+    intrinsics: Intrinsics
+    content_box: tuple[int, int, int, int]
+    hand_boxes: np.ndarray
+
+
+@dataclass(frozen=True)
+class TrackedFrame:
+    """The tracker's answer for one frame.
+
+    Attributes:
+        T_raw: (4, 4) camera-to-world pose, model units.
+        state: one of ``TRACKING_STATES``.
+        inliers: points that support the pose (0 unless ``tracked``).
+
+    """
+
+    T_raw: np.ndarray
+    state: str
+    inliers: int
+
+
+@dataclass
+class _Reference:
+    """The frame the points were lifted in, and where they are now."""
+
+    T_raw: np.ndarray  # reference camera-to-world, model units
+    points: np.ndarray  # (P, 3) float32, reference camera frame
+    pixels: np.ndarray  # (P, 2) float32, in the last tracked frame
+    count: int  # points lifted
+    sharpness: float  # variance of the reference image's Laplacian
+
+
+class CameraTracker:
+    """Track one stream's camera frame by frame (not thread-safe; ``reset`` between streams)."""
+
+    def __init__(self, config: TrackerConfig) -> None:
+        """Start with no reference."""
+        self.config = config
+        self._lk = {'winSize': (config.klt_window_px, config.klt_window_px),
+                    'maxLevel': config.klt_levels,
+                    'criteria': (cv2.TERM_CRITERIA_EPS | cv2.TERM_CRITERIA_COUNT, 20, 0.03)}
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the reference and the counts (a new stream)."""
+        self._reference: _Reference | None = None
+        self._last_gray: np.ndarray | None = None
+        self._previous: tuple[np.ndarray, np.ndarray] | None = None  # (T_raw, T_network)
+        self._lost = 0  # frames in a row without tracking
+        self.states: Counter[str] = Counter()
+        self.seconds = 0.0
+        self.frames = 0
+
+    def statistics(self) -> dict[str, object]:
+        """Return frames per state and the mean cost per frame (ms)."""
+        return {'states': dict(self.states),
+                'ms_per_frame': 1000.0 * self.seconds / self.frames if self.frames else 0.0}
+
+    def track(self, view: TrackingView | None, T_network: np.ndarray) -> TrackedFrame:
+        """Return the frame's pose; ``T_network``: its network pose (4, 4), model units."""
+        start = time.perf_counter()
+        result = self._track(view, np.asarray(T_network, dtype=np.float64))
+        self._previous = (result.T_raw, np.asarray(T_network, dtype=np.float64))
+        self.states[result.state] += 1
+        self.frames += 1
+        self.seconds += time.perf_counter() - start
+        return result
+
+    def _track(self, view: TrackingView | None, T_network: np.ndarray) -> TrackedFrame:
+        prior = self._prior(T_network)
+        if not self.config.enabled or view is None:
+            return TrackedFrame(prior, 'predicted', 0)
+        reference = self._reference
+        if reference is None:  # the stream's first frame: the world
+            self._set_reference(view, prior, *self._lift(view))
+            return TrackedFrame(prior, 'tracked', 0)
+        moved, survivors = self._follow(reference, view)
+        if survivors.sum() >= self.config.min_inliers:
+            solved = self._solve(reference, view, moved, survivors, prior)
+            if solved is not None:
+                T_raw, inliers = solved
+                self._last_gray = view.gray
+                self._lost = 0
+                if inliers < max(self.config.refresh_fraction * reference.count,
+                                 self.config.min_inliers):
+                    self._set_reference(view, T_raw, *self._lift(view))
+                return TrackedFrame(T_raw, 'tracked', inliers)
+        self._lost += 1
+        had = len(reference.pixels)
+        starved = had < self.config.min_inliers
+        cut = (survivors.sum() < self.config.cut_fraction * had
+               and _sharpness(view.gray) >= self.config.blur_ratio * reference.sharpness)
+        if starved or cut or self._lost >= self.config.max_lost_frames:
+            points, pixels = self._lift(view)
+            if len(points) >= self.config.min_inliers:  # texture here: start again on it
+                self._set_reference(view, prior, points, pixels)
+                return TrackedFrame(prior, 'predicted' if starved else 'reinitialised', 0)
+        return TrackedFrame(prior, 'predicted', 0)
+
+    def _prior(self, T_network: np.ndarray) -> np.ndarray:
+        """Return the network's motion since the previous frame applied to its pose."""
+        if self._previous is None:
+            return T_network
+        T_previous, T_network_previous = self._previous
+        return T_previous @ invert_transform(T_network_previous) @ T_network
+
+    def _follow(self, reference: _Reference, view: TrackingView
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Move the reference's points into ``view`` by KLT: (P, 2) pixels, (P,) survived."""
+        if not len(reference.pixels):
+            return np.zeros((0, 2), np.float32), np.zeros(0, dtype=bool)
+        start = reference.pixels.reshape(-1, 1, 2)
+        moved, found, _ = cv2.calcOpticalFlowPyrLK(self._last_gray, view.gray, start, None,
+                                                   **self._lk)
+        back, found_back, _ = cv2.calcOpticalFlowPyrLK(view.gray, self._last_gray, moved, None,
+                                                       **self._lk)
+        moved = moved.reshape(-1, 2)
+        error = np.linalg.norm(back.reshape(-1, 2) - reference.pixels, axis=1)
+        survivors = ((found.ravel() == 1) & (found_back.ravel() == 1)
+                     & (error <= self.config.forward_backward_px)
+                     & _inside(moved, view.content_box)
+                     & ~_in_boxes(moved, view.hand_boxes, self.config.hand_margin_px))
+        return moved, survivors
+
+    def _solve(self, reference: _Reference, view: TrackingView, moved: np.ndarray,
+               survivors: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, int] | None:
+        """Return (pose, inliers) by PnP on the surviving points, or None when it fails."""
+        points = reference.points[survivors].astype(np.float64)
+        pixels = moved[survivors].astype(np.float64)
+        matrix = view.intrinsics.matrix()
+        T_prior = invert_transform(prior) @ reference.T_raw  # reference -> current camera
+        rvec, _ = cv2.Rodrigues(T_prior[:3, :3])
+        tvec = T_prior[:3, 3].reshape(3, 1).copy()
+        ok, rvec, tvec, inliers = cv2.solvePnPRansac(
+            points, pixels, matrix, None, rvec, tvec, useExtrinsicGuess=True,
+            iterationsCount=100, reprojectionError=self.config.ransac_px, confidence=0.999,
+            flags=cv2.SOLVEPNP_ITERATIVE)
+        if not ok or inliers is None or len(inliers) < self.config.min_inliers:
+            return None
+        inliers = inliers.ravel()
+        rvec, tvec = cv2.solvePnPRefineLM(points[inliers], pixels[inliers], matrix, None,
+                                          rvec, tvec)
+        rotation, _ = cv2.Rodrigues(rvec)
+        T_current_reference = make_transform(rotation, tvec.ravel())
+        step = np.degrees(np.arccos(np.clip(
+            (np.trace(T_current_reference[:3, :3] @ T_prior[:3, :3].T) - 1.0) / 2.0, -1, 1)))
+        if not np.isfinite(T_current_reference).all() or step > self.config.max_step_deg:
+            return None
+        keep = np.flatnonzero(survivors)[inliers]
+        reference.points = reference.points[keep]
+        reference.pixels = moved[keep]
+        return reference.T_raw @ invert_transform(T_current_reference), len(inliers)
+
+    def _lift(self, view: TrackingView) -> tuple[np.ndarray, np.ndarray]:
+        """Return corners of ``view`` off the hands: (P, 3) camera points, (P, 2) pixels."""
+        config = self.config
+        mask = np.zeros(view.gray.shape, dtype=np.uint8)
+        x0, y0, x1, y1 = view.content_box
+        mask[y0:y1, x0:x1] = 255
+        margin = config.hand_margin_px
+        height, width = mask.shape
+        for box in np.asarray(view.hand_boxes, dtype=np.float64).reshape(-1, 4):
+            if not np.isfinite(box).all():
+                continue
+            bx0, by0 = (np.floor(box[:2]) - margin).astype(int).clip(0)
+            bx1, by1 = (np.ceil(box[2:]) + margin + 1).astype(int)
+            mask[by0:min(by1, height), bx0:min(bx1, width)] = 0
+        corners = cv2.goodFeaturesToTrack(view.gray, config.max_corners, config.corner_quality,
+                                          config.min_corner_distance_px, mask=mask)
+        pixels = (np.zeros((0, 2), np.float32) if corners is None
+                  else corners.reshape(-1, 2).astype(np.float32))
+        rows = np.clip(np.round(pixels[:, 1]).astype(int), 0, height - 1)
+        cols = np.clip(np.round(pixels[:, 0]).astype(int), 0, width - 1)
+        depth = view.depth[rows, cols].astype(np.float64)
+        good = np.isfinite(depth) & (depth > 0)
+        pixels, depth = pixels[good], depth[good]
+        intrinsics = view.intrinsics
+        points = np.stack([(pixels[:, 0] - intrinsics.cx) / intrinsics.fx * depth,
+                           (pixels[:, 1] - intrinsics.cy) / intrinsics.fy * depth,
+                           depth], axis=1).astype(np.float32)
+        return points, pixels
+
+    def _set_reference(self, view: TrackingView, T_raw: np.ndarray, points: np.ndarray,
+                       pixels: np.ndarray) -> None:
+        """Make ``view`` the reference at pose ``T_raw``, with its lifted corners."""
+        self._reference = _Reference(np.array(T_raw, dtype=np.float64), points, pixels,
+                                     len(points), _sharpness(view.gray))
+        self._last_gray = view.gray
+        self._lost = 0
+
+
+def _sharpness(gray: np.ndarray) -> float:
+    """Return the variance of the image's Laplacian (low: blurred or textureless)."""
+    return float(cv2.Laplacian(gray, cv2.CV_32F).var())
+
+
+def _inside(pixels: np.ndarray, box: tuple[int, int, int, int]) -> np.ndarray:
+    """Return (P,) bool: the pixels lie inside ``box`` (x0, y0, x1, y1; x1, y1 exclusive)."""
+    x0, y0, x1, y1 = box
+    return ((pixels[:, 0] >= x0) & (pixels[:, 0] <= x1 - 1)
+            & (pixels[:, 1] >= y0) & (pixels[:, 1] <= y1 - 1))
+
+
+def _in_boxes(pixels: np.ndarray, boxes: np.ndarray, margin: float) -> np.ndarray:
+    """Return (P,) bool: the pixels lie in any of the boxes grown by ``margin``."""
+    boxes = np.asarray(boxes, dtype=np.float64).reshape(-1, 4)
+    if not len(boxes):
+        return np.zeros(len(pixels), dtype=bool)
+    x, y = pixels[:, 0:1], pixels[:, 1:2]
+    inside = ((x >= boxes[:, 0] - margin) & (x <= boxes[:, 2] + margin)
+              & (y >= boxes[:, 1] - margin) & (y <= boxes[:, 3] + margin))
+    return inside.any(axis=1)
