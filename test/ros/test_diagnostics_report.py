@@ -21,6 +21,7 @@ def test_running_is_ok_with_the_figures() -> None:
     assert values['input_rate_hz'] == '10.000' and values['latency_p95_ms'] == '80.000'
     assert values['metric_scale'] == '0.250' and values['ba_state'] == 'off'
     assert values['frames_dropped'] == '0' and values['bad_frames'] == '0'
+    assert values['frames_out_of_order'] == '0'
     assert [values[f'intrinsics_from_{source}'] for source in ('camera_info', 'fallback',
                                                                'model')] == ['0', '0', '0']
 
@@ -48,6 +49,16 @@ def test_first_report_counts_drops_since_the_start() -> None:
     report = diagnostic_report(replace(RUNNING, dropped=7, bad=2), ENGINE, 5.0)
     assert report.level == WARN
     assert '7 frame(s) dropped' in report.message and '2 bad frame(s)' in report.message
+
+
+def test_out_of_order_frames_warn_while_new() -> None:
+    """New out-of-order frames: a value and WARN naming them; none new: OK, the count stays."""
+    late = replace(RUNNING, out_of_order=3)
+    report = diagnostic_report(late, ENGINE, 5.0, RUNNING)
+    assert report.level == WARN and '3 frame(s) out of order skipped' in report.message
+    assert dict(report.values)['frames_out_of_order'] == '3'
+    later = diagnostic_report(late, ENGINE, 5.0, late)
+    assert later.level == OK and dict(later.values)['frames_out_of_order'] == '3'
 
 
 def test_stale_before_the_first_image() -> None:

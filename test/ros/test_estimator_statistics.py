@@ -54,3 +54,13 @@ def test_intrinsics_sources_are_counted_per_source() -> None:
     assert snap.intrinsics_sources == {'camera_info': 2, 'model': 1}
     assert stats.snapshot(0.0).intrinsics_sources == {'camera_info': 2, 'model': 1,
                                                       'fallback': 1}
+
+
+def test_out_of_order_frames_are_counted_apart() -> None:
+    """Out-of-order images have their own counter; drops and bad frames stay as they were."""
+    stats = EstimatorStatistics(1.0)
+    assert stats.snapshot(0.0).out_of_order == 0
+    for _ in range(3):
+        stats.frame_out_of_order()
+    snap = stats.snapshot(0.0)
+    assert (snap.out_of_order, snap.dropped, snap.bad) == (3, 0, 0)

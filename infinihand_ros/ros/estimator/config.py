@@ -203,8 +203,8 @@ class EstimatorConfig:
     shape: ShapeConfig = nested(ShapeConfig)
     diagnostics: DiagnosticsConfig = nested(DiagnosticsConfig)
     ba_node: BANodeLinkConfig = nested(BANodeLinkConfig)
-    bad_frame_log_period_s: float = parameter(5.0, 'Throttle of the bad-frame warning, s.',
-                                              1e-3, 3600.0)
+    bad_frame_log_period_s: float = parameter(5.0, 'Throttle of the bad-frame and the '
+                                              'out-of-order-frame warnings, s.', 1e-3, 3600.0)
 
     def __post_init__(self) -> None:
         if not self.bad_frame_log_period_s > 0:

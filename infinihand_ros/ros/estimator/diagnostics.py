@@ -1,11 +1,12 @@
 """The estimator's ``/diagnostics`` status: level, message and key/value pairs (no ROS types).
 
 Level OK while images arrive and are published; WARN when no image came for a whole statistics
-window, when images are being dropped or refused in that time, when bundle adjustment has
-failed, or when the bundle-adjustment node is not there (never seen, or lost): poses continue
-unrefined then. STALE before the first image. The values include how many frames took their
-intrinsics from a paired CameraInfo, the fallback and the model (``intrinsics_from_*``): frames
-counted under ``model`` while a camera publishes CameraInfos mean that pairing is failing.
+window, when images are being dropped, refused or skipped as out of order (a stamp not after
+the last accepted image's) in that time, when bundle adjustment has failed, or when the
+bundle-adjustment node is not there (never seen, or lost): poses continue unrefined then.
+STALE before the first image. The values include how many frames took their intrinsics from a
+paired CameraInfo, the fallback and the model (``intrinsics_from_*``): frames counted under
+``model`` while a camera publishes CameraInfos mean that pairing is failing.
 """
 
 from dataclasses import dataclass
@@ -68,8 +69,8 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         engine_statistics: ``StreamingEngine.statistics`` (metric scale, BA state); with the
             BA node, its ``ba`` entry is the ``BANodeLink`` statistics.
         window_s: the statistics window, seconds (no image for this long: WARN).
-        previous: the figures of the last report, to tell new drops and bad frames; None for
-            the first report (drops and bad frames since the start are new).
+        previous: the figures of the last report, to tell new drops, bad and out-of-order
+            frames; None for the first report (those since the start are new).
 
     """
     state = ba_state(engine_statistics)
@@ -80,6 +81,7 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         ('processing_p95_ms', snapshot.processing_p95_ms),
         ('frames_received', snapshot.received), ('frames_published', snapshot.published),
         ('frames_dropped', snapshot.dropped), ('bad_frames', snapshot.bad),
+        ('frames_out_of_order', snapshot.out_of_order),
         ('metric_scale', engine_statistics.get('metric_scale', float('nan'))),
         ('metric_scale_state', engine_statistics.get('metric_scale_state', 'unknown')),
         ('pose_version', engine_statistics.get('pose_version', 0)), ('ba_state', state),
@@ -93,12 +95,16 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
     problems = []
     if snapshot.seconds_since_input > window_s:
         problems.append(f'no image for {snapshot.seconds_since_input:.1f} s')
-    dropped_before, bad_before = (0, 0) if previous is None else (previous.dropped, previous.bad)
+    dropped_before, bad_before, late_before = ((0, 0, 0) if previous is None else (
+        previous.dropped, previous.bad, previous.out_of_order))
     if snapshot.dropped > dropped_before:
         problems.append(f'{snapshot.dropped - dropped_before} frame(s) dropped (input faster '
                         'than the model)')
     if snapshot.bad > bad_before:
         problems.append(f'{snapshot.bad - bad_before} bad frame(s) skipped')
+    if snapshot.out_of_order > late_before:
+        problems.append(f'{snapshot.out_of_order - late_before} frame(s) out of order skipped '
+                        '(stamp not after the last accepted one)')
     if state == 'failed':
         problems.append('bundle adjustment failed: poses are unrefined')
     if state in UNAVAILABLE:

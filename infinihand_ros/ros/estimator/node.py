@@ -5,7 +5,9 @@ A thin adapter: message -> ``image_decoding`` / ``camera_info_pairing`` -> ``Str
 callbacks only put the message into a one-frame mailbox (``LatestFrameSlot``); a dedicated
 inference thread takes the newest one, so frames arriving while the model is busy are dropped
 and counted and the latency never grows. A bad frame (encoding, size, truncated data, bad
-CameraInfo) is logged, throttled, counted and skipped. Inputs (relative, remappable):
+CameraInfo) is logged, throttled, counted and skipped; so is an image whose stamp is not after
+the last accepted image's (late or repeated: the engine needs increasing stamps), checked before
+it can replace a waiting frame and again before it is decoded. Inputs (relative, remappable):
 ``image``, ``image/compressed``, ``camera_info``, with sensor-data QoS overridable by
 parameters. Bundle adjustment runs by default in the engine's background worker process
 (``engine.bundle_adjustment: in_process``); no frame waits for it, and its corrections move
@@ -93,6 +95,9 @@ class EstimatorNode(Node):
         self._paired_once = False
         self._slot: LatestFrameSlot[tuple[Any, int]] = LatestFrameSlot()
         self._arrivals: OrderedDict[int, int] = OrderedDict()  # image stamp -> arrival, ns
+        # Stamp of the last image the engine took, ns; written by the inference thread only.
+        self._last_accepted_ns: int | None = None
+        self._image_topics: dict[type, str] = {}  # message type -> resolved topic name
         self.outputs = OutputPublishers(self, self.config.outputs, self.config.frames,
                                         self.config.tf)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
@@ -101,9 +106,9 @@ class EstimatorNode(Node):
         overrides = QoSOverridingOptions.with_default_policies()
         # rclpy writes a topic's QoS overrides into the profile it is given: one copy per topic.
         for msg_type, topic in ((Image, 'image'), (CompressedImage, 'image/compressed')):
-            self.create_subscription(msg_type, topic, self._on_image,
-                                     copy.copy(qos_profile_sensor_data),
-                                     qos_overriding_options=overrides)
+            self._image_topics[msg_type] = self.create_subscription(
+                msg_type, topic, self._on_image, copy.copy(qos_profile_sensor_data),
+                qos_overriding_options=overrides).topic_name
         self.create_subscription(CameraInfo, 'camera_info', self._on_camera_info,
                                  copy.copy(qos_profile_sensor_data),
                                  qos_overriding_options=overrides)
@@ -128,11 +133,33 @@ class EstimatorNode(Node):
         return self.get_clock().now().nanoseconds
 
     def _on_image(self, msg: Image | CompressedImage) -> None:
-        """Keep only the newest image; count the one it replaces as dropped."""
+        """Keep only the newest image; count the one it replaces as dropped.
+
+        An image out of order is skipped here already, so it never replaces a waiting one.
+        """
         now = self._now_ns()
         self.statistics.frame_received(now / NS_PER_S)
+        if self._out_of_order(msg, ns_from_stamp(msg.header.stamp)):
+            return
         if self._slot.put((msg, now)):
             self.statistics.frame_dropped()
+
+    def _out_of_order(self, msg: Image | CompressedImage, stamp_ns: int) -> bool:
+        """Return whether the image's stamp is not after the last accepted one (then count it).
+
+        The warning is throttled (``bad_frame_log_period_s``): however many come, one line per
+        period; each one is counted in ``frames_out_of_order``.
+        """
+        last = self._last_accepted_ns
+        if last is None or stamp_ns > last:
+            return False
+        self.statistics.frame_out_of_order()
+        self.get_logger().warning(
+            f'{self._image_topics[type(msg)]}: skipping an image stamped {stamp_ns} ns, not '
+            f'after the last accepted image stamped {last} ns (out of order or repeated; '
+            'counted in frames_out_of_order)',
+            throttle_duration_sec=self.config.bad_frame_log_period_s)
+        return True
 
     def _on_camera_info(self, msg: CameraInfo) -> None:
         """Store a CameraInfo for pairing; a bad one is logged, counted and ignored."""
@@ -170,6 +197,8 @@ class EstimatorNode(Node):
     def _process(self, msg: Image | CompressedImage, arrival_ns: int) -> None:
         """Decode, pair with intrinsics, run the pipeline and publish one image."""
         stamp_ns = ns_from_stamp(msg.header.stamp)
+        if self._out_of_order(msg, stamp_ns):  # an image accepted since this one was put
+            return
         self._arrivals[stamp_ns] = arrival_ns
         while len(self._arrivals) > ARRIVALS_KEPT:
             self._arrivals.popitem(last=False)
@@ -177,6 +206,7 @@ class EstimatorNode(Node):
             rgb = decode_image(msg)
             choice = self._intrinsics_for(stamp_ns, rgb.shape[1], rgb.shape[0])
             results = self.engine.push(rgb, stamp_ns, choice.intrinsics)
+            self._last_accepted_ns = stamp_ns
             self.statistics.intrinsics_used(choice.source)
         except InputError as exc:
             self._bad_frame(f'skipping the image stamped {stamp_ns}: {exc}')

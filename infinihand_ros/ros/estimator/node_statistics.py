@@ -5,9 +5,10 @@ the time between the first and last event in the window (0 with fewer than two),
 from the second frame on. Latency is measured from the image stamp to the publication of its
 outputs, on the node's clock (ROS time; ``/clock`` when replaying with ``use_sim_time``), and
 from the image's arrival at the node to that publication (the node's own share, any clock).
-Counters (received, dropped, bad, published, and the frames processed with intrinsics from each
-source: a paired CameraInfo, the configured fallback, the model's field of view) count since
-start. Thread-safe: the image callback and the inference thread report concurrently.
+Counters (received, dropped, bad, published, out of order, and the frames processed with
+intrinsics from each source: a paired CameraInfo, the configured fallback, the model's field of
+view) count since start. Thread-safe: the image callback and the inference thread report
+concurrently.
 """
 
 from collections import deque
@@ -44,6 +45,8 @@ class StatisticsSnapshot:
         seconds_since_input: time since the last image, s (inf: none yet).
         intrinsics_sources: frames processed per intrinsics source (``camera_info_pairing``'s
             ``FROM_CAMERA_INFO``, ``FROM_FALLBACK``, ``FROM_MODEL``), since start.
+        out_of_order: images skipped because their stamp was not after the last accepted
+            image's (late or repeated), since start.
 
     """
 
@@ -59,6 +62,7 @@ class StatisticsSnapshot:
     published: int
     seconds_since_input: float
     intrinsics_sources: dict[str, int] = field(default_factory=dict)
+    out_of_order: int = 0
 
 
 def _rate(times: deque[float]) -> float:
@@ -85,7 +89,8 @@ class EstimatorStatistics:
         self._lock = threading.Lock()
         self._inputs: deque[float] = deque()
         self._outputs: deque[tuple[float, float, float]] = deque()  # (time, latencies)
-        self._counts = {'received': 0, 'dropped': 0, 'bad': 0, 'published': 0}
+        self._counts = {'received': 0, 'dropped': 0, 'bad': 0, 'published': 0,
+                        'out_of_order': 0}
         self._last_input_s: float | None = None
         self._intrinsics_sources: dict[str, int] = {}
 
@@ -106,6 +111,11 @@ class EstimatorStatistics:
         """Count a malformed message."""
         with self._lock:
             self._counts['bad'] += 1
+
+    def frame_out_of_order(self) -> None:
+        """Count an image skipped for a stamp not after the last accepted one."""
+        with self._lock:
+            self._counts['out_of_order'] += 1
 
     def intrinsics_used(self, source: str) -> None:
         """Count a frame processed with intrinsics from ``source``."""
@@ -138,7 +148,7 @@ class EstimatorStatistics:
                 *processing, self._counts['received'], self._counts['dropped'],
                 self._counts['bad'], self._counts['published'],
                 float('inf') if last_input is None else now_s - last_input,
-                dict(self._intrinsics_sources))
+                dict(self._intrinsics_sources), self._counts['out_of_order'])
 
     def _trim(self, now_s: float) -> None:
         """Drop events older than the window (caller holds the lock)."""
