@@ -175,3 +175,19 @@ def test_reset_starts_a_new_world() -> None:
 def test_bad_settings_are_refused_by_name(settings: dict, key: str) -> None:
     with pytest.raises(ConfigError, match=key):
         TrackerConfig(**settings)
+
+
+def test_a_hand_covering_most_of_the_image_is_never_tracked() -> None:
+    """A hand box over nearly the whole frame: the network's motion, then tracking again."""
+    source = texture(9)
+    tracker = CameraTracker(TrackerConfig())
+    covering = np.array([[5.0, 5.0, WIDTH - 5.0, HEIGHT - 5.0]])
+    states = []
+    for index in range(20):
+        gray, depth = render(source, true_pose(index))
+        boxes = covering if 5 <= index < 10 else None
+        result = tracker.track(view(gray, depth, boxes), true_pose(index))
+        states.append(result.state)
+    assert states[5:10] == ['predicted'] * 5
+    assert states[11:] == ['tracked'] * 9
+    assert errors(result.T_raw, true_pose(19))[1] < 0.5

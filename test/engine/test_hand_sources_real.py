@@ -1,8 +1,8 @@
 """The MediaPipe hand source on real pixels (../shared/data stills; skipped when absent).
 
-Real photos, and crop "videos" of them whose intrinsics are exact (``real_stills.py``): the
-hand's camera-frame position is the same in every crop, so the stream path, identity and
-smoothing are checked against a known answer on real pixels.
+Real photos, and crop "videos" of them whose intrinsics are exact
+(``synth/photo_streams.py``): the hand's camera-frame position is the same in every crop, so
+the stream path, identity and smoothing are checked against a known answer on real pixels.
 """
 
 from dataclasses import replace
@@ -20,9 +20,9 @@ from infinihand_ros.engine.output.config import SmoothingConfig
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.mano.kinematics import PARENTS_WITH_TIPS
+from infinihand_ros.synth.photo_streams import crop_stream
 import numpy as np
 import pytest
-from real_stills import crop_stream
 from real_stills import require_stills
 
 MODELS = (BuiltinHandModel(LEFT), BuiltinHandModel(RIGHT))

@@ -1,0 +1,125 @@
+"""The engine's camera on real pixels with exactly known cameras, tracker on and off.
+
+    python benchmarks/camera_tracking.py [--stills DIR] [--frames N] [--json]
+
+Builds two streams from the shared real stills (``../shared/data/real_hands_stills``) with
+``infinihand_ros.synth.photo_streams`` and runs each through the default engine (bundled model,
+real-image hand source, BA off) with the per-frame tracker on and off (off: the network's
+camera as it is):
+- still camera, 10 Hz: a real hand and arm moving across a photo; the true pose is the
+  identity, so every pose is drift (metres with the engine's metric scale, and degrees);
+- turning camera, 10 Hz: views from a camera turned about the photo's centre by up to 10
+  degrees (pure rotation, no parallax); rotation error against the exact truth.
+Prints the worst and the mean error of each, the tracker's states and its cost per frame.
+"""
+
+import argparse
+from dataclasses import replace
+import json
+from pathlib import Path
+
+from infinihand_ros.bag.camera_stream import read_camera_frames
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.hands.config import HandsConfig
+from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
+from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.synth.photo_streams import pasted_stream
+from infinihand_ros.synth.photo_streams import rotation_stream
+import numpy as np
+from scipy.spatial.transform import Rotation
+import torch
+
+STILLS = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real_hands_stills'
+
+
+def hand_and_arm(stills: list) -> np.ndarray:
+    """Return a patch around the first real hand MediaPipe finds, grown down to its arm."""
+    detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
+    try:
+        for frame in stills:
+            detections = detector.detect(frame.rgb, 0)
+            detector.reset()
+            if detections:
+                joints = detections[0].joints_2d
+                height, width = frame.rgb.shape[:2]
+                x0, y0 = np.maximum(np.floor(joints.min(axis=0)).astype(int) - 20, 0)
+                x1, y1 = np.ceil(joints.max(axis=0)).astype(int) + 20
+                return frame.rgb[y0:min(y1 + (y1 - y0) // 2, height), x0:min(x1, width)]
+    finally:
+        detector.close()
+    raise SystemExit('MediaPipe found no hand in the stills')
+
+
+def run(frames: list, tracker: bool) -> tuple[list, dict]:
+    """Return the engine's results and its tracker statistics for one stream."""
+    config = load_engine_config()
+    config = replace(config, hands=replace(config.hands, source='mediapipe'),
+                     bundle_adjustment=None, tracker=replace(config.tracker, enabled=tracker))
+    with StreamingEngine(config) as engine:
+        results = []
+        for frame in frames:
+            results.extend(engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics))
+        results.extend(engine.flush())
+        return results, engine.statistics['tracker']
+
+
+def main() -> None:
+    """Print the still-camera drift and the turning-camera error, tracker on and off."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--stills', type=Path, default=STILLS)
+    parser.add_argument('--frames', type=int, default=200, help='frames of the still camera')
+    parser.add_argument('--json', action='store_true')
+    args = parser.parse_args()
+    torch.set_num_threads(1)
+    stills = list(read_camera_frames(args.stills))
+    patch, background = hand_and_arm(stills), stills[0]
+    height, width = background.rgb.shape[:2]
+    steps = np.linspace(0.0, 1.0, args.frames)
+    corners = np.stack([(width - patch.shape[1] - 1) * (0.5 + 0.5 * np.sin(4 * np.pi * steps)),
+                        (height - patch.shape[0] - 1) * (0.5 + 0.5 * np.sin(6 * np.pi * steps))],
+                       axis=1)
+    still = pasted_stream(background.rgb, patch, corners, background.intrinsics)
+    steps = np.linspace(0.0, 1.0, 100)
+    truth = Rotation.from_rotvec(np.radians(np.stack(
+        [5.0 * np.sin(2 * np.pi * steps), 10.0 * np.sin(np.pi * steps), 8.0 * steps],
+        axis=1))).as_matrix()
+    photo = stills[5]
+    turning = rotation_stream(photo.rgb, photo.intrinsics, truth,
+                              Intrinsics(400.0, 400.0, 159.5, 119.5, 320, 240))
+    report = {}
+    for tracker in (True, False):
+        name = 'tracker' if tracker else 'network'
+        results, statistics = run(still, tracker)
+        drift_m = np.array([np.linalg.norm(r.camera_pose.translation) for r in results])
+        drift_deg = np.degrees([Rotation.from_matrix(r.camera_pose.rotation).magnitude()
+                                for r in results])
+        turned, turn_statistics = run(turning, tracker)
+        error_deg = np.degrees([Rotation.from_matrix(r.camera_pose.rotation @ t.T).magnitude()
+                                for r, t in zip(turned, truth[0].T @ truth)])
+        report[name] = {
+            'still_max_m': float(drift_m.max()), 'still_mean_m': float(drift_m.mean()),
+            'still_max_deg': float(drift_deg.max()), 'still_mean_deg': float(drift_deg.mean()),
+            'turning_max_deg': float(error_deg.max()),
+            'turning_mean_deg': float(error_deg.mean()),
+            'still_states': statistics['states'], 'turning_states': turn_statistics['states'],
+            'ms_per_frame': (statistics['ms_per_frame'] + turn_statistics['ms_per_frame']) / 2}
+    if args.json:
+        print(json.dumps(report))
+        return
+    print(f'still camera ({args.frames} frames, 10 Hz, a real hand and arm moving) and turning '
+          'camera (100 frames, pure rotation up to 10 deg), default engine, BA off')
+    print('| camera | still: max drift (m) | mean (m) | max (deg) | mean (deg) | '
+          'turning: max error (deg) | mean (deg) | tracker ms/frame |')
+    print('|---|---|---|---|---|---|---|---|')
+    for name, row in report.items():
+        print(f"| {name} | {row['still_max_m']:.4f} | {row['still_mean_m']:.4f} | "
+              f"{row['still_max_deg']:.3f} | {row['still_mean_deg']:.3f} | "
+              f"{row['turning_max_deg']:.3f} | {row['turning_mean_deg']:.3f} | "
+              f"{row['ms_per_frame']:.2f} |")
+    print(f"tracker states: still {report['tracker']['still_states']}, turning "
+          f"{report['tracker']['turning_states']}")
+
+
+if __name__ == '__main__':
+    main()
