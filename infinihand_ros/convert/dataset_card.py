@@ -30,7 +30,9 @@ FEATURE_NOTES: Final = {
                        'trajectory of the episode'),
     feat.INTRINSICS: ('px', 'fx, fy, cx, cy of the video frame (pixel centres at integers)'),
     feat.CAMERA_FLAGS: ('bool', 'keyframe (entered the streaming memory); ba_corrected '
-                        '(bundle adjustment moved the pose)'),
+                        '(bundle adjustment moved the pose); tracked (the pose was measured in '
+                        "the image, else the network's motion was used); reinitialised (the "
+                        'camera track restarted here: a discontinuity such as a cut)'),
     feat.HAND_VALID: ('bool', 'the hand was detected and placed in the world; the other hand '
                       'features of an invalid hand hold the fill value'),
     feat.HAND_CONFIDENCE: ('[0, 1]', "the hand source's presence score (kept for invalid "

@@ -34,6 +34,8 @@ from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.data.lerobot_features import ACTION
+from infinihand_ros.data.lerobot_features import CAMERA_FLAG_NAMES
+from infinihand_ros.data.lerobot_features import CAMERA_FLAGS
 from infinihand_ros.data.lerobot_features import FRAME_INDEX
 from infinihand_ros.data.lerobot_features import frame_values
 from infinihand_ros.data.lerobot_features import HAND_VALID
@@ -205,6 +207,11 @@ def _fill_report(report: EpisodeReport, columns: dict[str, np.ndarray], collecto
         for side, reason in collector.reasons[push].items():
             invalid.setdefault(side, Counter())[reason] += 1
     report.hands_invalid = {side: dict(reasons) for side, reasons in invalid.items()}
+    flags = dict(zip(CAMERA_FLAG_NAMES, columns[CAMERA_FLAGS].astype(bool).T))
+    report.camera_tracking = {
+        'tracked': int(flags['tracked'].sum()),
+        'predicted': int((~flags['tracked'] & ~flags['reinitialised']).sum()),
+        'reinitialised': int(flags['reinitialised'].sum())}
     first = source_stamps[0]
     gaps = np.abs(np.array(source_stamps) - np.array(
         [output_time_ns(first, k, config.fps) for k in range(len(source_stamps))])) / NS_PER_S

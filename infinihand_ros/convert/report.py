@@ -27,6 +27,9 @@ class EpisodeReport:
         warnings: reason -> frames kept despite a problem.
         hands_valid: side -> output frames with a valid hand.
         hands_invalid: side -> {reason -> output frames} for frames without a valid hand.
+        camera_tracking: output frames whose camera pose was measured in the image
+            ('tracked'), came from the network's motion ('predicted'), or where the camera
+            track restarted ('reinitialised': a discontinuity).
         source_gaps: output frames farther than ``max_source_gap_s`` from any source frame.
         max_source_gap_s: the largest distance of an output frame to its source frame.
         metric_scale: the engine's final metric-scale estimate.
@@ -46,6 +49,7 @@ class EpisodeReport:
     warnings: dict[str, int] = field(default_factory=dict)
     hands_valid: dict[str, int] = field(default_factory=dict)
     hands_invalid: dict[str, dict[str, int]] = field(default_factory=dict)
+    camera_tracking: dict[str, int] = field(default_factory=dict)
     source_gaps: int = 0
     max_source_gap_s: float = 0.0
     metric_scale: float = 1.0
@@ -75,6 +79,9 @@ class EpisodeReport:
         for side, reasons in self.hands_invalid.items():
             out += [f'  {side} hand invalid in {count} frames: {reason}'
                     for reason, count in reasons.items()]
+        if self.camera_tracking:
+            out.append('  camera pose: ' + ', '.join(
+                f'{state} {count}' for state, count in self.camera_tracking.items()))
         out += [f'  skipped {count} frames: {reason}' for reason, count in self.skipped.items()]
         out += [f'  warning ({count} frames): {reason}' for reason, count in self.warnings.items()]
         if self.source_gaps:

@@ -11,8 +11,10 @@ world; the values of an invalid hand are ``invalid_fill`` and ``hands.valid`` sa
 
 Only ``observation.state``, ``action`` and the video start with ``observation.``/``action`` so
 that LeRobot policies take exactly those as inputs and targets; the other features are data.
-``camera.flags`` marks keyframes (frames in the streaming memory) and frames whose pose bundle
-adjustment corrected.
+``camera.flags`` marks keyframes (frames in the streaming memory), frames whose pose bundle
+adjustment corrected, frames whose pose was measured in the image (the per-frame tracker, or a
+fixed camera; otherwise the network's motion was used) and frames where the camera track
+restarted (a discontinuity, e.g. a cut between scenes).
 ``observation.state`` per hand: wrist position (3), wrist rotation as 6D (the first two columns
 of the MANO global orientation matrix, 6), the five fingertips (15).
 """
@@ -48,6 +50,7 @@ MANO_GLOBAL_ORIENT: Final = 'hands.mano.global_orient'
 MANO_HAND_POSE: Final = 'hands.mano.hand_pose'
 MANO_BETAS: Final = 'hands.mano.betas'
 CAMERA_FLAGS: Final = 'camera.flags'
+CAMERA_FLAG_NAMES: Final = ('keyframe', 'ba_corrected', 'tracked', 'reinitialised')
 SOURCE_STAMP: Final = 'source.stamp_ns'
 #: LeRobot's bookkeeping columns (shape (1,), no names).
 TIMESTAMP: Final = 'timestamp'
@@ -101,7 +104,7 @@ FRAME_FEATURES: Final = (
     FeatureSpec(CAMERA_POSE, 'float32',
                 tuple(f'T_world_cam_{row}{col}' for row in range(4) for col in range(4))),
     FeatureSpec(INTRINSICS, 'float32', ('fx', 'fy', 'cx', 'cy')),
-    FeatureSpec(CAMERA_FLAGS, 'bool', ('keyframe', 'ba_corrected')),
+    FeatureSpec(CAMERA_FLAGS, 'bool', CAMERA_FLAG_NAMES),
     FeatureSpec(HAND_VALID, 'bool', SIDE_NAMES),
     FeatureSpec(HAND_CONFIDENCE, 'float32', SIDE_NAMES),
     FeatureSpec(WRIST_POSE, 'float32', _per_side(
@@ -187,5 +190,7 @@ def frame_values(result: FrameResult, fill: float) -> tuple[dict[str, np.ndarray
     raw = result.raw_camera_pose
     corrected = raw is not None and not np.allclose(raw.matrix(), result.camera_pose.matrix(),
                                                     atol=BA_CORRECTED_TOL)
-    out[CAMERA_FLAGS] = np.array([result.is_keyframe, corrected], dtype=np.float64)
+    out[CAMERA_FLAGS] = np.array([result.is_keyframe, corrected,
+                                  result.tracking in ('tracked', 'static'),
+                                  result.tracking == 'reinitialised'], dtype=np.float64)
     return out, reasons

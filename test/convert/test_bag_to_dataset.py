@@ -120,6 +120,13 @@ def test_bags_convert_and_read_back(synth_bags: list[Path], tmp_path: Path) -> N
     reports = _report(output)
     assert [r['status'] for r in reports] == ['converted', 'converted']
     assert reports[0]['frames_in'] == 6 and reports[0]['frames_out'] == 6
+    flags = np.array(data['camera.flags'], dtype=bool)  # keyframe, ba, tracked, reinitialised
+    tracking = reports[0]['camera_tracking']
+    first = flags[:6]
+    assert tracking == {'tracked': int(first[:, 2].sum()),
+                        'predicted': int((~first[:, 2] & ~first[:, 3]).sum()),
+                        'reinitialised': int(first[:, 3].sum())}
+    assert tracking['tracked'] >= 1  # the first frame at least: it defines the world
 
 
 @pytest.mark.slow

@@ -71,16 +71,22 @@ def test_hand_without_world_pose_is_invalid(rng: np.random.Generator) -> None:
     assert np.isnan(values[features.KEYPOINTS_WORLD]).all()
 
 
-def test_camera_flags_mark_keyframes_and_ba_corrections() -> None:
-    """``camera.flags``: keyframe as the engine said; ba_corrected only when BA moved the pose."""
+def test_camera_flags_mark_keyframes_ba_corrections_and_tracking() -> None:
+    """``camera.flags``: keyframe, BA correction, measured pose, track restart.
+
+    keyframe as the engine said; ba_corrected only when BA moved the pose; tracked when the
+    pose was measured (or the camera is fixed); reinitialised where the track restarted.
+    """
     intrinsics = Intrinsics(1, 1, 0, 0, 2, 2)
     moved = CameraPose(np.eye(3), np.array([0.0, 0.0, 0.01]))
-    cases = [(FrameResult(1, 0, CameraPose.identity(), intrinsics), [0.0, 0.0]),
+    cases = [(FrameResult(1, 0, CameraPose.identity(), intrinsics), [0, 0, 0, 0]),
              (FrameResult(1, 0, moved, intrinsics, is_keyframe=True,
-                          raw_camera_pose=moved), [1.0, 0.0]),
-             (FrameResult(1, 0, moved, intrinsics, raw_camera_pose=CameraPose.identity()),
-              [0.0, 1.0])]
+                          raw_camera_pose=moved, tracking='tracked'), [1, 0, 1, 0]),
+             (FrameResult(1, 0, moved, intrinsics, raw_camera_pose=CameraPose.identity(),
+                          tracking='reinitialised'), [0, 1, 0, 1]),
+             (FrameResult(1, 0, moved, intrinsics, tracking='static'), [0, 0, 1, 0])]
     for result, flags in cases:
         values, _ = features.frame_values(result, fill=0.0)
         assert values[features.CAMERA_FLAGS].tolist() == flags
-    assert _spec(features.CAMERA_FLAGS).names == ('keyframe', 'ba_corrected')
+    assert _spec(features.CAMERA_FLAGS).names == ('keyframe', 'ba_corrected', 'tracked',
+                                                  'reinitialised')
