@@ -2,8 +2,9 @@
 
 ``engine`` -> ``model`` (geometry and hand-branch configs, hand model incl. real MANO, weights)
 -> ``detection`` -> ``metric_scale`` -> ``pose_track`` -> ``tracker`` -> ``bundle_adjustment``
-(BA settings, or null for none). Every value is checked when the file is loaded; errors name the key, e.g.
-``engine.model.hand_model.mano_dir`` or ``engine.bundle_adjustment.tracking.klt_window_px``.
+(BA settings, or null for none). Every value is checked when the file is loaded; errors name
+the key, e.g. ``engine.model.hand_model.mano_dir`` or
+``engine.bundle_adjustment.tracking.klt_window_px``.
 In YAML, ``bundle_adjustment`` may be ``null`` (off), ``true`` (the package's
 ``config/ba.yaml``), a path to a BA YAML file, or the BA settings themselves.
 """
