@@ -61,6 +61,25 @@ def test_out_of_order_frames_warn_while_new() -> None:
     assert later.level == OK and dict(later.values)['frames_out_of_order'] == '3'
 
 
+def test_camera_tracking_counts_and_new_untracked_frames_warn() -> None:
+    """Published frames per tracking state are values; new predicted or restarts warn."""
+    tracked = replace(RUNNING, camera_tracking={'tracked': 95})
+    engine = {**ENGINE, 'tracker': {'states': {'tracked': 95}, 'ms_per_frame': 4.25}}
+    report = diagnostic_report(tracked, engine, 5.0, tracked)
+    values = dict(report.values)
+    assert report.level == OK
+    assert (values['camera_tracked'], values['camera_predicted'], values['camera_reinitialised'],
+            values['camera_static'], values['tracker_ms_per_frame']) == ('95', '0', '0', '0',
+                                                                         '4.250')
+    lost = replace(RUNNING, camera_tracking={'tracked': 95, 'predicted': 4, 'reinitialised': 1})
+    report = diagnostic_report(lost, engine, 5.0, tracked)
+    assert report.level == WARN
+    assert 'camera not tracked in 4 frame(s)' in report.message
+    assert 'camera track restarted 1 time(s)' in report.message
+    assert diagnostic_report(lost, engine, 5.0, lost).level == OK
+    assert dict(diagnostic_report(RUNNING, ENGINE, 5.0).values)['tracker_ms_per_frame'] == 'nan'
+
+
 def test_stale_before_the_first_image() -> None:
     """No image received yet: STALE."""
     report = diagnostic_report(replace(RUNNING, received=0), ENGINE, 5.0)

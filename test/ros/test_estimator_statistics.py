@@ -11,8 +11,9 @@ def test_rates_latencies_and_counters() -> None:
     stats = EstimatorStatistics(window_s=10.0)
     for i in range(11):
         stats.frame_received(i * 0.1)
-    for i, latency in enumerate([0.01, 0.02, 0.03, 0.04, 0.05]):
-        stats.frame_published(i * 0.2, latency, latency / 2)
+    states = ['tracked', 'tracked', 'predicted', 'reinitialised', 'tracked']
+    for i, (latency, state) in enumerate(zip([0.01, 0.02, 0.03, 0.04, 0.05], states)):
+        stats.frame_published(i * 0.2, latency, latency / 2, state)
     stats.frame_dropped(3)
     stats.frame_bad()
     snap = stats.snapshot(1.0)
@@ -23,6 +24,7 @@ def test_rates_latencies_and_counters() -> None:
     assert snap.processing_p50_ms == pytest.approx(15.0)
     assert (snap.received, snap.dropped, snap.bad, snap.published) == (11, 3, 1, 5)
     assert snap.seconds_since_input == pytest.approx(0.0)
+    assert snap.camera_tracking == {'tracked': 3, 'predicted': 1, 'reinitialised': 1}
 
 
 def test_window_forgets_old_events_but_not_counts() -> None:
@@ -30,7 +32,7 @@ def test_window_forgets_old_events_but_not_counts() -> None:
     stats = EstimatorStatistics(window_s=1.0)
     stats.frame_received(0.0)
     stats.frame_received(0.1)
-    stats.frame_published(0.1, 0.05, 0.01)
+    stats.frame_published(0.1, 0.05, 0.01, 'tracked')
     snap = stats.snapshot(5.0)
     assert snap.input_rate_hz == 0.0 and snap.output_rate_hz == 0.0
     assert math.isnan(snap.latency_p50_ms)

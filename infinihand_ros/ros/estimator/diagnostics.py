@@ -3,7 +3,9 @@
 Level OK while images arrive and are published; WARN when no image came for a whole statistics
 window, when images are being dropped, refused or skipped as out of order (a stamp not after
 the last accepted image's) in that time, when bundle adjustment has failed, or when the
-bundle-adjustment node is not there (never seen, or lost): poses continue unrefined then.
+bundle-adjustment node is not there (never seen, or lost): poses continue unrefined then, and
+when the camera tracker could not measure published frames in the image (their poses follow the
+network's motion) or restarted (a discontinuity: a cut, or the view lost for several frames).
 STALE before the first image. The values include how many frames took their intrinsics from a
 paired CameraInfo, the fallback and the model (``intrinsics_from_*``): frames counted under
 ``model`` while a camera publishes CameraInfos mean that pairing is failing.
@@ -29,6 +31,8 @@ LOST: Final = 'lost'
 UNAVAILABLE: Final = {WAITING: 'not seen yet', LOST: 'lost'}
 #: Intrinsics sources, each reported as ``intrinsics_from_<source>`` (frames since start).
 INTRINSICS_SOURCES: Final = (FROM_CAMERA_INFO, FROM_FALLBACK, FROM_MODEL)
+#: Camera-tracking states, each reported as ``camera_<state>`` (published frames since start).
+TRACKING_STATES: Final = ('tracked', 'predicted', 'reinitialised', 'static')
 
 
 @dataclass(frozen=True)
@@ -50,6 +54,13 @@ def _ba_count(engine_statistics: dict[str, object], key: str) -> object:
     """Return a BA counter of the statistics (0 without BA)."""
     ba = engine_statistics.get('ba')
     return ba.get(key, 0) if isinstance(ba, dict) else 0
+
+
+def _tracker_ms(engine_statistics: dict[str, object]) -> float:
+    """Return the camera tracker's mean cost per frame, ms (NaN when not reported)."""
+    tracker = engine_statistics.get('tracker')
+    return (float(tracker.get('ms_per_frame', float('nan'))) if isinstance(tracker, dict)
+            else float('nan'))
 
 
 def _format(value: object) -> str:
@@ -88,7 +99,10 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         ('ba_results_applied', _ba_count(engine_statistics, 'folded_in')),
         ('ba_outages', _ba_count(engine_statistics, 'outages')),
         *((f'intrinsics_from_{source}', snapshot.intrinsics_sources.get(source, 0))
-          for source in INTRINSICS_SOURCES))
+          for source in INTRINSICS_SOURCES),
+        *((f'camera_{state}', snapshot.camera_tracking.get(state, 0))
+          for state in TRACKING_STATES),
+        ('tracker_ms_per_frame', _tracker_ms(engine_statistics)))
     text = tuple((key, _format(value)) for key, value in values)
     if snapshot.received == 0:
         return DiagnosticReport(STALE, 'waiting for images', text)
@@ -105,6 +119,15 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
     if snapshot.out_of_order > late_before:
         problems.append(f'{snapshot.out_of_order - late_before} frame(s) out of order skipped '
                         '(stamp not after the last accepted one)')
+    tracking_before = {} if previous is None else previous.camera_tracking
+    new = {key: snapshot.camera_tracking.get(key, 0) - tracking_before.get(key, 0)
+           for key in ('predicted', 'reinitialised')}
+    if new['predicted'] > 0:
+        problems.append(f"camera not tracked in {new['predicted']} frame(s): poses follow the "
+                        "network's motion (textureless, covered or blurred view)")
+    if new['reinitialised'] > 0:
+        problems.append(f"camera track restarted {new['reinitialised']} time(s): poses are "
+                        'not continuous there (a cut, or the view lost)')
     if state == 'failed':
         problems.append('bundle adjustment failed: poses are unrefined')
     if state in UNAVAILABLE:

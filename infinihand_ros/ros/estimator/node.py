@@ -231,7 +231,7 @@ class EstimatorNode(Node):
             stamp = result.timestamp_ns
             arrival = self._arrivals.get(stamp, now)
             self.statistics.frame_published(now / NS_PER_S, (now - stamp) / NS_PER_S,
-                                            (now - arrival) / NS_PER_S)
+                                            (now - arrival) / NS_PER_S, result.tracking)
         if self._ba_node is not None:
             self._ba_node.report_folded_in()
             self._ba_node.send_keyframes(camera_frame)

@@ -47,6 +47,8 @@ class StatisticsSnapshot:
             ``FROM_CAMERA_INFO``, ``FROM_FALLBACK``, ``FROM_MODEL``), since start.
         out_of_order: images skipped because their stamp was not after the last accepted
             image's (late or repeated), since start.
+        camera_tracking: frames published per camera-tracking state (``FrameResult.tracking``:
+            tracked, predicted, reinitialised, static), since start.
 
     """
 
@@ -63,6 +65,7 @@ class StatisticsSnapshot:
     seconds_since_input: float
     intrinsics_sources: dict[str, int] = field(default_factory=dict)
     out_of_order: int = 0
+    camera_tracking: dict[str, int] = field(default_factory=dict)
 
 
 def _rate(times: deque[float]) -> float:
@@ -93,6 +96,7 @@ class EstimatorStatistics:
                         'out_of_order': 0}
         self._last_input_s: float | None = None
         self._intrinsics_sources: dict[str, int] = {}
+        self._camera_tracking: dict[str, int] = {}
 
     def frame_received(self, now_s: float) -> None:
         """Count an image that arrived at ``now_s``."""
@@ -122,17 +126,20 @@ class EstimatorStatistics:
         with self._lock:
             self._intrinsics_sources[source] = self._intrinsics_sources.get(source, 0) + 1
 
-    def frame_published(self, now_s: float, latency_s: float, processing_s: float) -> None:
+    def frame_published(self, now_s: float, latency_s: float, processing_s: float,
+                        tracking: str) -> None:
         """Count a frame published at ``now_s``.
 
         Args:
             now_s: publication time, s (node clock).
             latency_s: time since the image's stamp, s.
             processing_s: time since the image arrived at the node, s.
+            tracking: how its camera pose was found (``FrameResult.tracking``).
 
         """
         with self._lock:
             self._counts['published'] += 1
+            self._camera_tracking[tracking] = self._camera_tracking.get(tracking, 0) + 1
             self._outputs.append((now_s, latency_s, processing_s))
             self._trim(now_s)
 
@@ -148,7 +155,8 @@ class EstimatorStatistics:
                 *processing, self._counts['received'], self._counts['dropped'],
                 self._counts['bad'], self._counts['published'],
                 float('inf') if last_input is None else now_s - last_input,
-                dict(self._intrinsics_sources), self._counts['out_of_order'])
+                dict(self._intrinsics_sources), self._counts['out_of_order'],
+                dict(self._camera_tracking))
 
     def _trim(self, now_s: float) -> None:
         """Drop events older than the window (caller holds the lock)."""
