@@ -1,10 +1,11 @@
 """Live estimator figures: output rate, latency and drops with the sample bag replayed at 10/30 Hz.
 
-    python benchmarks/node_latency.py [--rates 10 30] [--ba none node] [--seconds S] [--json]
+    python benchmarks/node_latency.py [--rates 10 30] [--ba none in_process node] [--seconds S]
+        [--json]
 
 Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
 ``source scripts/env.sh``. For each input rate and BA setting it starts the installed
-``estimator`` (with ``engine.bundle_adjustment`` none, or ``node`` plus the installed
+``estimator`` (with ``engine.bundle_adjustment`` none, in_process, or ``node`` plus the installed
 ``bundle_adjustment`` node) on a private DDS domain, replays the first ``--seconds`` of the
 sample bag (10 FPS; ``replay --rate r/10``) and listens in this process to the replayed images
 and to ``~/camera_pose``.
@@ -81,8 +82,10 @@ def parse_args() -> argparse.Namespace:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--rates', type=float, nargs='+', default=[10.0, 30.0],
                         help='input rates, Hz (the bag is 10 FPS)')
-    parser.add_argument('--ba', nargs='+', default=['none', 'node'], choices=['none', 'node'],
-                        help='bundle adjustment: none, or the BA node')
+    parser.add_argument('--ba', nargs='+', default=['none', 'in_process', 'node'],
+                        choices=['none', 'in_process', 'node'],
+                        help="bundle adjustment: none, the engine's worker (the node's "
+                        'default) or the BA node')
     parser.add_argument('--seconds', type=float, default=0.0,
                         help='replay only the first S seconds of the bag (0: all of it)')
     parser.add_argument('--json', action='store_true', help='print one JSON line per run')

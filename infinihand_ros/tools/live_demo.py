@@ -39,6 +39,7 @@ from infinihand_ros.eval.recorded import segment
 from infinihand_ros.eval.report import markdown_tables
 from infinihand_ros.eval.sequences import open_eval_sequence
 from infinihand_ros.ros.estimator.config import BA_MODES
+from infinihand_ros.ros.estimator.config import EngineSelection
 from infinihand_ros.synth.sample_bag import sample_bag_path
 from infinihand_ros.tools.live_run import LiveRunSpec
 from infinihand_ros.tools.live_run import recorded_topics
@@ -70,8 +71,9 @@ def parse_args(argv: list[str] | None) -> LiveDemoOptions:
                         help='output directory: new or empty (recorded/, eval/, logs/)')
     parser.add_argument('--rate', type=float, default=10.0, metavar='HZ',
                         help='images per second replayed into the node (default 10)')
-    parser.add_argument('--ba', choices=BA_MODES, default='none',
-                        help='bundle adjustment: none, in_process (the engine) or node')
+    parser.add_argument('--ba', choices=BA_MODES, default=EngineSelection().bundle_adjustment,
+                        help="bundle adjustment: none, in_process (the engine's worker; the "
+                        "node's default) or node")
     parser.add_argument('--seconds', type=float, default=0.0, metavar='S',
                         help='replay only the first S seconds of the bag (0: all of it)')
     parser.add_argument('--hand-source', choices=HAND_SOURCES, default=INFINIHAND,
