@@ -67,11 +67,11 @@ class TrackerConfig:
     """
 
     enabled: bool = True
-    max_corners: int = 300
+    max_corners: int = 200
     corner_quality: float = 0.01
     min_corner_distance_px: float = 7.0
     hand_margin_px: int = 8
-    klt_window_px: int = 21
+    klt_window_px: int = 15
     klt_levels: int = 3
     forward_backward_px: float = 1.0
     ransac_px: float = 2.0
