@@ -129,6 +129,31 @@ def test_a_crop_video_keeps_the_hand_in_place_with_one_identity(crop_video: tupl
     assert np.abs(sideways - centre[:2]).max() <= 0.03, sideways
 
 
+def test_tracking_restarts_at_each_scene_cut_only(stills: list, crop_video: tuple) -> None:
+    """Unrelated photos in a row are cuts (MediaPipe restarts); a moving crop video is not."""
+    detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
+    try:
+        cuts = []
+        for index, frame in enumerate(stills):
+            detector.detect(frame.rgb, index)
+            cuts.append(detector.cut)
+        assert cuts == [False] + [True] * (len(stills) - 1)
+        assert detector.scene_cuts == len(stills) - 1
+        detector.reset()
+        for index, frame in enumerate(crop_video[1]):
+            detector.detect(frame.rgb, index)
+        assert detector.scene_cuts == len(stills) - 1 and not detector.cut
+    finally:
+        detector.close()
+    never = MediaPipeDetector(HandsConfig(source='mediapipe', scene_cut_distance=1.0))
+    try:
+        for index, frame in enumerate(stills[:5]):
+            never.detect(frame.rgb, index)
+        assert never.scene_cuts == 0
+    finally:
+        never.close()
+
+
 @pytest.mark.slow
 def test_smoothing_steadies_the_crop_video(crop_video: tuple) -> None:
     """One-Euro smoothing lowers the frame-to-frame jitter of the world wrist on real pixels."""

@@ -36,6 +36,10 @@ class HandsConfig:
                                                'landmark score falls below this.', 0.0, 1.0)
     refine_iterations: int = parameter(0, 'L-BFGS steps refining the MANO fit of each MediaPipe '
                                        'hand after the closed-form start (0: none).', 0, 1000)
+    scene_cut_distance: float = parameter(
+        0.3, "MediaPipe's hand tracking restarts when two consecutive images' hue-saturation "
+        'histograms differ by more than this Bhattacharyya distance (a cut between scenes; '
+        '1: never).', 0.0, 1.0)
 
     def __post_init__(self) -> None:
         check_parameters(self, 'hands.')

@@ -89,7 +89,10 @@ class MediaPipeHandSource:
 
     def detect(self, image: np.ndarray, frame_index: int) -> Sequence[Detection2D]:
         """Run MediaPipe on the frame's source image."""
-        return self._detector.detect(image, frame_index)
+        found = self._detector.detect(image, frame_index)
+        if self._detector.cut:  # a new scene: no warm start from the last one
+            self._previous.clear()
+        return found
 
     def camera_hands(self, detections: Sequence[Detection2D],
                      branch_hands: tuple[HandState, ...], intrinsics: Intrinsics
@@ -117,7 +120,7 @@ class MediaPipeHandSource:
     def statistics(self) -> dict[str, object]:
         """Return the counters and the recent reprojection error (fraction of the box size)."""
         ratios = self.reprojection_ratios
-        return {'source': self.name, **self.counts,
+        return {'source': self.name, **self.counts, 'scene_cuts': self._detector.scene_cuts,
                 'reprojection_box_fraction_p95': (float(np.percentile(ratios, 95)) if ratios
                                                   else None)}
 
