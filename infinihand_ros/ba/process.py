@@ -197,7 +197,10 @@ class BAProcess:
         self._stop(kill=False)
 
     def kill(self) -> None:
-        """Kill the child at once (a call waiting on it then fails); safe from any thread."""
+        """Kill the child at once (a call waiting on it then fails, a polite stop ends).
+
+        Safe from any thread.
+        """
         process = self._process
         if process is None:
             return
@@ -225,7 +228,6 @@ class BAProcess:
     def _stop(self, kill: bool) -> int | None:
         """Stop the child (politely unless ``kill``), close the pipe; return its exit code."""
         process, connection, calls = self._process, self._connection, self._calls
-        self._process = self._connection = None
         if process is None:
             return None
         if not kill and calls and process.is_alive():
@@ -233,7 +235,8 @@ class BAProcess:
                 send_message(connection, ('stop', None))
             except OSError as exc:
                 logger.debug('BA process gone before it was told to stop (%s)', exc)
-            process.join(STOP_TIMEOUT_S)
+            process.join(STOP_TIMEOUT_S)  # still reachable by ``kill`` meanwhile
+        self._process = self._connection = None
         if process.is_alive():
             process.kill()
         process.join()

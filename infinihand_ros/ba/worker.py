@@ -164,6 +164,7 @@ class BundleAdjustmentWorker:
                                       'callback_errors'), 0)
         self._last_error: str | None = None
         self._fatal = False
+        self._abandoning = False  # close() is killing the running call
         self._process: BAProcess | None = None
         self._thread = threading.Thread(target=self._run, name='bundle_adjustment', daemon=True)
         self._thread.start()
@@ -285,22 +286,24 @@ class BundleAdjustmentWorker:
         return [queued for queued in self._queued if isinstance(queued, _Selection)]
 
     def close(self, timeout_s: float | None = None) -> None:
-        """Finish the queued requests, then stop the thread and the BA process.
+        """Stop the thread and the BA process.
 
         Args:
-            timeout_s: most seconds to wait, or None to wait for every queued call. When it
-                runs out, the running call is abandoned (its process killed, counted in
-                ``failed``) and the queued ones are dropped.
+            timeout_s: None: finish every queued call first. Otherwise the queued calls are
+                dropped at once (counted in ``dropped``) and the running one gets at most
+                ``timeout_s`` seconds; then it is abandoned (its process killed, counted in
+                ``failed``).
 
         """
         with self._wake:
             self._closing = True
+            if timeout_s is not None:
+                self._counts['dropped'] += len(self._queued)
+                self._queued.clear()
             self._wake.notify_all()
         self._thread.join(timeout_s)
         if self._thread.is_alive():
-            with self._wake:
-                self._counts['dropped'] += len(self._queued)
-                self._queued.clear()
+            self._abandoning = True
             process = self._process
             if process is not None:
                 process.kill()
@@ -400,10 +403,16 @@ class BundleAdjustmentWorker:
         return True
 
     def _record_failure(self, frame_ids: list[int], exc: Exception) -> None:
-        """Log (with the BA process's traceback, if any) and count a failed call."""
-        remote = exc.remote_traceback if isinstance(exc, BAProcessError) else ''
-        logger.error('BA call over frames %s failed; poses stay uncorrected: %s\n%s',
-                     frame_ids, exc, remote, exc_info=not remote)
+        """Log (with the BA process's traceback, if any) and count a failed call.
+
+        A call that ``close`` abandoned is only noted: nobody waits for its result.
+        """
+        if self._abandoning:
+            logger.info('BA call over frames %s abandoned at close', frame_ids)
+        else:
+            remote = exc.remote_traceback if isinstance(exc, BAProcessError) else ''
+            logger.error('BA call over frames %s failed; poses stay uncorrected: %s\n%s',
+                         frame_ids, exc, remote, exc_info=not remote)
         with self._wake:
             self._counts['failed'] += 1
             self._last_error = f'{type(exc).__name__}: {exc}'

@@ -38,7 +38,7 @@ class BABackend(Protocol):
         """Forget the sequence (a new stream starts)."""
 
     def close(self) -> None:
-        """Stop background work; idempotent."""
+        """Stop background work promptly (queued work is dropped: ``settle`` first); idempotent."""
 
 
 def hand_mask_from_boxes(hands: tuple[HandState, ...], intrinsics: Intrinsics) -> np.ndarray:

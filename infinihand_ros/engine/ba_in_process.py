@@ -5,8 +5,12 @@ which runs BA in its own process, so its thread settings, CPU priority and crash
 and the stream goes on at once. Finished BA calls are handed to the pose track
 (``engine/pose_track.py``), which applies them as corrections; nothing here places hands or
 changes results. The track's correction history is pruned to what the pool and the track can
-still query, so memory and time stay bounded on an unbounded stream.
+still query, so memory and time stay bounded on an unbounded stream. Closing or resetting never
+waits long for BA: queued calls are dropped and a running one gets ``STOP_WAIT_S`` (a node
+stopped with Ctrl-C exits promptly); ``settle`` first to get every result.
 """
+
+from typing import Final
 
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.keyframe import KeyframeInput
@@ -14,6 +18,10 @@ from infinihand_ros.ba.keyframe_ba import KeyframeBA
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.engine.ba_backend import prune_corrections
 from infinihand_ros.engine.pose_track import PoseTrack
+
+#: On close and reset, seconds the running BA call gets before its process is killed (queued
+#: calls are dropped at once: their results could only reach a stream that has ended).
+STOP_WAIT_S: Final = 0.5
 
 
 class InProcessBA:
@@ -65,10 +73,13 @@ class InProcessBA:
                 'folded_in': self.calls_done}
 
     def reset(self) -> None:
-        """Stop the worker (finishing queued calls) and start an empty pool and a new one."""
-        self.ba.worker.close()
+        """Stop the worker (``close``) and start an empty pool and a new one."""
+        self.close()
         self._start()
 
     def close(self) -> None:
-        """Finish queued BA calls and stop the worker."""
-        self.ba.worker.close()
+        """Drop queued BA calls, give the running one ``STOP_WAIT_S``, stop the worker.
+
+        Results not handed over by then are lost: ``settle`` first to get every one.
+        """
+        self.ba.worker.close(STOP_WAIT_S)

@@ -1,12 +1,20 @@
 """BA beside the stream: keyframes reach the pool, BA runs in the background, poses improve."""
 
 from dataclasses import dataclass
+import os
 import time
 
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.config import PoolConfig
+from infinihand_ros.ba.config import WorkerConfig
+from infinihand_ros.ba.features import FeatureCache
+from infinihand_ros.ba.keyframe import BAOutput
 from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.ba.worker import BARequest
+from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.engine import ba_in_process
 from infinihand_ros.engine.ba_backend import hand_mask_from_boxes
 from infinihand_ros.engine.ba_backend import keyframe_input
 from infinihand_ros.engine.ba_in_process import InProcessBA
@@ -21,6 +29,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 NUM_FRAMES = 60
+#: Seconds ``close`` may take with BA busy (``STOP_WAIT_S`` plus stopping the BA process).
+CLOSE_BOUND_S = 2.0
 
 
 def _drifted(truth: np.ndarray, rng: np.random.Generator) -> np.ndarray:
@@ -120,3 +130,90 @@ def test_hand_mask_covers_the_boxes() -> None:
     for truth in frame.hands:
         if truth.visible:
             assert mask[truth.mask].all()
+
+
+def _sleep(request: object, config: BAConfig, cache: FeatureCache) -> None:
+    """Take far longer than any test waits (a BA call still running at close)."""
+    time.sleep(120.0)
+
+
+def _echo(request: BARequest, config: BAConfig, cache: FeatureCache) -> BAOutput:
+    """Return the request's initial poses as refined, a little later (a quick BA stand-in)."""
+    time.sleep(0.1)
+    keyframes = request.keyframes
+    return BAOutput(np.array([k.frame_id for k in keyframes]),
+                    np.array([k.timestamp_ns for k in keyframes]),
+                    np.stack([k.T_world_cam for k in keyframes]), request.T_world_cam,
+                    0, 0, 0, 0.1, 0.0)
+
+
+class _SlowWorker(BundleAdjustmentWorker):
+    run_function = staticmethod(_sleep)
+
+
+class _EchoWorker(BundleAdjustmentWorker):
+    run_function = staticmethod(_echo)
+
+
+def _plain_keyframe(index: int) -> KeyframeInput:
+    """Return a small keyframe 0.1 s after the previous one (only the stand-ins read it)."""
+    intrinsics = Intrinsics(50.0, 50.0, 32.0, 24.0, 64, 48)
+    return KeyframeInput(index, (index + 1) * 100_000_000, np.zeros((48, 64, 3), np.uint8),
+                         np.ones((48, 64), np.float32), np.eye(4), intrinsics,
+                         np.zeros((48, 64), bool))
+
+
+def _alive(pid: int) -> bool:
+    """Return whether process ``pid`` exists (not yet reaped)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_close_with_ba_busy_returns_at_once_and_leaves_no_process(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """A running call and queued ones: close drops the queue, kills the call, within 2 s."""
+    monkeypatch.setattr(ba_in_process, 'BundleAdjustmentWorker', _SlowWorker)
+    stage = InProcessBA(BAConfig(pool=PoolConfig(trigger=2, stride=2)))
+    worker = stage.ba.worker
+    deadline = time.monotonic() + 60.0
+    while worker.process_id is None and time.monotonic() < deadline:
+        time.sleep(0.01)
+    pid = worker.process_id
+    keyframes = iter(_plain_keyframe(index) for index in range(100))
+    for calls in (1, 3):  # one call running, then two queued behind it
+        while stage.ba.calls_submitted < calls:
+            stage.offer(next(keyframes))
+        time.sleep(0.5)  # the first call is on its way to the (sleeping) BA process
+    assert pid is not None and worker.pending() == 3
+    start = time.monotonic()
+    stage.close()
+    assert time.monotonic() - start < CLOSE_BOUND_S
+    stats = worker.statistics
+    assert (stats.state, stats.done, stats.failed, stats.dropped) == ('stopped', 0, 1, 2)
+    assert not _alive(pid)
+
+
+def test_settle_then_close_gets_every_ba_result_and_stops_at_once(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """An offline run (when_behind: wait) settles: every call is folded in; close is quick."""
+    monkeypatch.setattr(ba_in_process, 'BundleAdjustmentWorker', _EchoWorker)
+    config = BAConfig(pool=PoolConfig(trigger=2, stride=2),
+                      worker=WorkerConfig(when_behind='wait'))
+    stage = InProcessBA(config)
+    track = PoseTrack(PoseTrackConfig(), MetricScaleConfig(), config.corrections.blend_s)
+    for index in range(12):
+        keyframe = _plain_keyframe(index)
+        track.add(index, keyframe.timestamp_ns, keyframe.T_world_cam)
+        stage.fold_in(track)
+        stage.offer(keyframe)
+    assert stage.ba.calls_submitted >= 4
+    assert stage.settle(track, timeout_s=60.0)
+    assert stage.calls_done == stage.ba.calls_submitted and stage.ba.worker.dropped == 0
+    pid = stage.ba.worker.process_id
+    start = time.monotonic()
+    stage.close()
+    assert time.monotonic() - start < CLOSE_BOUND_S
+    assert pid is not None and not _alive(pid)
