@@ -207,9 +207,18 @@ def _torch_threads_in_a_new_thread() -> int:
 
 
 def _nice_values(pid: int) -> set[int]:
-    """Return the niceness values of the threads of process ``pid`` (Linux /proc)."""
-    return {int((task / 'stat').read_text().rsplit(')', 1)[1].split()[16])
-            for task in Path(f'/proc/{pid}/task').iterdir()}
+    """Return the niceness values of the threads of process ``pid`` (Linux /proc).
+
+    A thread that ends while they are read (one just joined) is left out.
+    """
+    values = set()
+    for task in Path(f'/proc/{pid}/task').iterdir():
+        try:
+            stat = (task / 'stat').read_text()
+        except FileNotFoundError:
+            continue
+        values.add(int(stat.rsplit(')', 1)[1].split()[16]))
+    return values
 
 
 @pytest.mark.skipif(not Path('/proc/self/task').exists(), reason='needs Linux /proc')
