@@ -165,6 +165,26 @@ def test_static_camera_is_the_world_frame_and_places_hands_with_it(model,
         StreamingEngine(replace(CONFIG, camera_motion='static'), model, ba_backend=RemoteBA())
 
 
+def test_each_result_says_how_its_pose_was_found(model, frames: list) -> None:
+    """Each result's ``tracking`` state, as the tracker counted it.
+
+    Tracker on: the first frame is the world (tracked), each later one tracked, predicted or
+    reinitialised; off: every pose is the network's (predicted); a fixed camera: static.
+    """
+    with StreamingEngine(CONFIG, model) as engine:
+        tracked = _run(engine, frames[:4])
+        counts = engine.statistics['tracker']['states']
+    assert tracked[0].tracking == 'tracked'
+    assert {r.tracking for r in tracked} <= {'tracked', 'predicted', 'reinitialised'}
+    assert counts == {state: sum(r.tracking == state for r in tracked) for state in counts}
+    off = replace(CONFIG, tracker=replace(CONFIG.tracker, enabled=False))
+    with StreamingEngine(off, model) as engine:
+        network = _run(engine, frames[:4])
+    assert [r.tracking for r in network] == ['predicted'] * 4
+    with StreamingEngine(replace(CONFIG, camera_motion='static'), model) as engine:
+        assert {r.tracking for r in _run(engine, frames[:4])} == {'static'}
+
+
 def test_a_remote_backend_gets_each_keyframe_once_with_its_scaled_pose(model,
                                                                        frames: list) -> None:
     """The engine offers every keyframe (source image, metric depth, scaled raw pose)."""
