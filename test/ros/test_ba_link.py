@@ -32,3 +32,15 @@ def test_only_results_of_sent_keyframes_are_accepted() -> None:
     assert not link.accepts(np.array([99]))
     statistics = link.statistics(0.0)
     assert statistics['results_refused'] == 2 and statistics['keyframes_sent'] == 4
+
+
+def test_results_of_a_stream_before_a_restart_are_refused() -> None:
+    """forget_sent: results of keyframes sent before are refused; new keyframes are accepted."""
+    link = BANodeLink(timeout_s=1.0, stamps_kept=8)
+    for stamp in (10, 20):
+        link.sent(stamp)
+    link.forget_sent()
+    assert not link.accepts(np.array([10, 20]))
+    link.sent(10)  # a replay loop sends the same stamps again
+    assert link.accepts(np.array([10]))
+    assert link.statistics(0.0)['keyframes_sent'] == 3

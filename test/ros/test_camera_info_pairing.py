@@ -75,3 +75,13 @@ def test_paired_and_has_infos() -> None:
     assert not pairing.has_infos and pairing.paired(0, 640, 480) is None
     pairing.add(info(0, 500.0))
     assert pairing.has_infos and pairing.paired(0, 640, 480).fx == 500.0
+
+
+def test_forget_after_drops_the_infos_ahead_of_a_restarted_stream() -> None:
+    """After a restart at 1 s, the stream before's infos at 5 s go; those up to 1 s stay."""
+    pairing = CameraInfoPairing(10 * MS, FallbackIntrinsics())
+    pairing.add(info(5000 * MS, 500.0))  # the stream before
+    pairing.add(info(1005 * MS, 600.0))  # the new stream's first one (within the tolerance)
+    pairing.forget_after(1000 * MS)
+    assert pairing.intrinsics_for(5000 * MS, 640, 480).source == FROM_MODEL
+    assert pairing.intrinsics_for(1000 * MS, 640, 480).intrinsics.fx == 600.0

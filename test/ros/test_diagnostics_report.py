@@ -21,7 +21,7 @@ def test_running_is_ok_with_the_figures() -> None:
     assert values['input_rate_hz'] == '10.000' and values['latency_p95_ms'] == '80.000'
     assert values['metric_scale'] == '0.250' and values['ba_state'] == 'off'
     assert values['frames_dropped'] == '0' and values['bad_frames'] == '0'
-    assert values['frames_out_of_order'] == '0'
+    assert values['frames_out_of_order'] == '0' and values['stream_restarts'] == '0'
     assert [values[f'intrinsics_from_{source}'] for source in ('camera_info', 'fallback',
                                                                'model')] == ['0', '0', '0']
 
@@ -59,6 +59,18 @@ def test_out_of_order_frames_warn_while_new() -> None:
     assert dict(report.values)['frames_out_of_order'] == '3'
     later = diagnostic_report(late, ENGINE, 5.0, late)
     assert later.level == OK and dict(later.values)['frames_out_of_order'] == '3'
+
+
+def test_stream_restarts_warn_while_new() -> None:
+    """A new stream restart: a value and WARN saying the world frame restarted; later: OK."""
+    restarted = replace(RUNNING, stream_restarts=1)
+    report = diagnostic_report(restarted, ENGINE, 5.0, RUNNING)
+    assert report.level == WARN and 'stream restarted 1 time(s)' in report.message
+    assert 'the world frame restarted' in report.message
+    assert dict(report.values)['stream_restarts'] == '1'
+    assert diagnostic_report(restarted, ENGINE, 5.0).level == WARN  # since the start: new
+    later = diagnostic_report(restarted, ENGINE, 5.0, restarted)
+    assert later.level == OK and dict(later.values)['stream_restarts'] == '1'
 
 
 def test_camera_tracking_counts_and_new_untracked_frames_warn() -> None:

@@ -66,3 +66,12 @@ def test_out_of_order_frames_are_counted_apart() -> None:
         stats.frame_out_of_order()
     snap = stats.snapshot(0.0)
     assert (snap.out_of_order, snap.dropped, snap.bad) == (3, 0, 0)
+
+
+def test_stream_restarts_are_counted_apart() -> None:
+    """Stream restarts have their own counter; other counters stay as they were."""
+    stats = EstimatorStatistics(1.0)
+    assert stats.snapshot(0.0).stream_restarts == 0
+    stats.stream_restarted()
+    snap = stats.snapshot(0.0)
+    assert (snap.stream_restarts, snap.out_of_order, snap.dropped, snap.bad) == (1, 0, 0, 0)

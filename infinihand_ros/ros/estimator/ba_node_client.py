@@ -12,8 +12,11 @@ The link is 'waiting' before the first status, 'connected' while they keep comin
 once none came for ``timeout_s`` (the node died or hangs). Either way the estimator goes on
 with unrefined poses; a node that comes back is 'connected' again and its corrections apply.
 Keyframe stamps sent are remembered (bounded), so corrections of keyframes this estimator never
-sent (another estimator's stream, one before a restart) are refused. ``BANodeLink`` is
-thread-safe: heartbeats and corrections arrive in callbacks while the inference thread reads.
+sent (another estimator's stream, one before a restart) are refused; when the estimator's stream
+restarts they are forgotten (``restart``), so late corrections of the stream before are refused
+too. The BA node starts a new sequence by itself when a keyframe's stamp goes back.
+``BANodeLink`` is thread-safe: heartbeats and corrections arrive in callbacks while the
+inference thread reads.
 """
 
 from collections import deque
@@ -88,6 +91,12 @@ class BANodeLink:
             self._sent_set.add(stamp_ns)
             self.counts['keyframes_sent'] += 1
 
+    def forget_sent(self) -> None:
+        """Forget the keyframe stamps sent (their stream ended): their results are refused."""
+        with self._lock:
+            self._sent.clear()
+            self._sent_set.clear()
+
     def accepts(self, times_ns: np.ndarray) -> bool:
         """Return whether every stamp of a result is a keyframe this link sent (else count it)."""
         with self._lock:
@@ -152,6 +161,10 @@ class BANodeClient:
         """Publish the keyframes the engine offered since the last call."""
         for keyframe in self.remote.take_keyframes():
             self.publish(keyframe, camera_frame_id)
+
+    def restart(self) -> None:
+        """Start a new stream: corrections of keyframes sent before are refused from now on."""
+        self.link.forget_sent()
 
     def check(self) -> None:
         """Log a change of the link's state (once per change)."""

@@ -4,7 +4,9 @@
 zero focal lengths and zero sizes are refused) and keeps the newest ``capacity`` of them.
 ``intrinsics_for(stamp, width, height)`` returns the stored intrinsics whose stamp is nearest
 the image's (within ``tolerance_ns``) and whose size matches, else the fallback intrinsics when
-they are configured, else None (the model predicts the field of view).
+they are configured, else None (the model predicts the field of view). When the stream restarts
+at an earlier stamp, ``forget_after`` drops the CameraInfos of the stream before, which lie
+ahead of it.
 """
 
 from collections import deque
@@ -93,6 +95,13 @@ class CameraInfoPairing:
             raise InputError(f'camera_info stamped {ns_from_stamp(msg.header.stamp)}: {exc}'
                              ) from exc
         self._infos.append((ns_from_stamp(msg.header.stamp), intrinsics))
+
+    def forget_after(self, stamp_ns: int) -> None:
+        """Forget the CameraInfos stamped more than the tolerance after ``stamp_ns``."""
+        kept = [(stamp, info) for stamp, info in self._infos
+                if stamp <= stamp_ns + self.tolerance_ns]
+        self._infos.clear()
+        self._infos.extend(kept)
 
     def intrinsics_for(self, stamp_ns: int, width: int, height: int) -> IntrinsicsChoice:
         """Return the intrinsics for an image of this stamp and size (see the module doc)."""

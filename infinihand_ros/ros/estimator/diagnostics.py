@@ -2,13 +2,14 @@
 
 Level OK while images arrive and are published; WARN when no image came for a whole statistics
 window, when images are being dropped, refused or skipped as out of order (a stamp not after
-the last accepted image's) in that time, when bundle adjustment has failed, or when the
-bundle-adjustment node is not there (never seen, or lost): poses continue unrefined then, and
-when the camera tracker could not measure published frames in the image (their poses follow the
-network's motion) or restarted (a discontinuity: a cut, or the view lost for several frames).
-STALE before the first image. The values include how many frames took their intrinsics from a
-paired CameraInfo, the fallback and the model (``intrinsics_from_*``): frames counted under
-``model`` while a camera publishes CameraInfos mean that pairing is failing.
+the last accepted image's) in that time, when the stream restarted then (a stamp far before the
+last accepted one: the engine reset, a new world frame), when bundle adjustment has failed, or
+when the bundle-adjustment node is not there (never seen, or lost): poses continue unrefined
+then, and when the camera tracker could not measure published frames in the image (their
+poses follow the network's motion) or restarted (a discontinuity: a cut, or the view lost for
+several frames). STALE before the first image. The values include how many frames took their
+intrinsics from a paired CameraInfo, the fallback and the model (``intrinsics_from_*``): frames
+counted under ``model`` while a camera publishes CameraInfos mean that pairing is failing.
 """
 
 from dataclasses import dataclass
@@ -81,7 +82,8 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
             BA node, its ``ba`` entry is the ``BANodeLink`` statistics.
         window_s: the statistics window, seconds (no image for this long: WARN).
         previous: the figures of the last report, to tell new drops, bad and out-of-order
-            frames; None for the first report (those since the start are new).
+            frames and stream restarts; None for the first report (those since the start are
+            new).
 
     """
     state = ba_state(engine_statistics)
@@ -93,6 +95,7 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         ('frames_received', snapshot.received), ('frames_published', snapshot.published),
         ('frames_dropped', snapshot.dropped), ('bad_frames', snapshot.bad),
         ('frames_out_of_order', snapshot.out_of_order),
+        ('stream_restarts', snapshot.stream_restarts),
         ('metric_scale', engine_statistics.get('metric_scale', float('nan'))),
         ('metric_scale_state', engine_statistics.get('metric_scale_state', 'unknown')),
         ('pose_version', engine_statistics.get('pose_version', 0)), ('ba_state', state),
@@ -109,8 +112,9 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
     problems = []
     if snapshot.seconds_since_input > window_s:
         problems.append(f'no image for {snapshot.seconds_since_input:.1f} s')
-    dropped_before, bad_before, late_before = ((0, 0, 0) if previous is None else (
-        previous.dropped, previous.bad, previous.out_of_order))
+    dropped_before, bad_before, late_before, restarts_before = (
+        (0, 0, 0, 0) if previous is None else
+        (previous.dropped, previous.bad, previous.out_of_order, previous.stream_restarts))
     if snapshot.dropped > dropped_before:
         problems.append(f'{snapshot.dropped - dropped_before} frame(s) dropped (input faster '
                         'than the model)')
@@ -119,6 +123,10 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
     if snapshot.out_of_order > late_before:
         problems.append(f'{snapshot.out_of_order - late_before} frame(s) out of order skipped '
                         '(stamp not after the last accepted one)')
+    if snapshot.stream_restarts > restarts_before:
+        problems.append(f'stream restarted {snapshot.stream_restarts - restarts_before} '
+                        'time(s) (stamp far before the last accepted one: a replay loop or a '
+                        'camera restart): the world frame restarted')
     tracking_before = {} if previous is None else previous.camera_tracking
     new = {key: snapshot.camera_tracking.get(key, 0) - tracking_before.get(key, 0)
            for key in ('predicted', 'reinitialised')}

@@ -7,14 +7,18 @@ inference thread takes the newest one, so frames arriving while the model is bus
 and counted and the latency never grows. A bad frame (encoding, size, truncated data, bad
 CameraInfo) is logged, throttled, counted and skipped; so is an image whose stamp is not after
 the last accepted image's (late or repeated: the engine needs increasing stamps), checked before
-it can replace a waiting frame and again before it is decoded. Inputs (relative, remappable):
-``image``, ``image/compressed``, ``camera_info``, with sensor-data QoS overridable by
-parameters. Bundle adjustment runs by default in the engine's background worker process
-(``engine.bundle_adjustment: in_process``); no frame waits for it, and its corrections move
-later poses. With ``engine.bundle_adjustment: node`` the engine's ``RemoteBA`` backend offers
-keyframes and takes corrections, and ``BANodeClient`` carries them to and from the bundle-
-adjustment node (corrections are folded in before each frame and while no frame comes); without
-that node the poses go on unrefined and diagnostics say so.
+it can replace a waiting frame and again before it is decoded. An image stamped more than
+``camera.restart_after_s`` before the last accepted one (a replay looping, a camera restarting,
+normal stamps after a far-future one) starts a new stream instead: the engine resets (a new
+world frame, pose track and BA), the camera path and the stream's CameraInfos start afresh, and
+the image is the new stream's first; one warning and ``stream_restarts`` say so. Inputs
+(relative, remappable): ``image``, ``image/compressed``, ``camera_info``, with sensor-data QoS
+overridable by parameters. Bundle adjustment runs by default in the engine's background worker
+process (``engine.bundle_adjustment: in_process``); no frame waits for it, and its corrections
+move later poses. With ``engine.bundle_adjustment: node`` the engine's ``RemoteBA`` backend
+offers keyframes and takes corrections, and ``BANodeClient`` carries them to and from the
+bundle-adjustment node (corrections are folded in before each frame and while no frame comes);
+without that node the poses go on unrefined and diagnostics say so.
 
 ``main`` runs it with ``node_process.run_node``: SIGINT and SIGTERM (rclpy's signal handlers)
 end the spin, the inference thread and the engine are stopped, and the process exits 0. A bad
@@ -38,6 +42,8 @@ from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.engine.output.camera_path import CameraPath
 from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.engine.timestamps import stamp_step
+from infinihand_ros.engine.timestamps import StampStep
 from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.estimator.ba_node_client import BANodeClient
 from infinihand_ros.ros.estimator.camera_info_pairing import CameraInfoPairing
@@ -97,6 +103,7 @@ class EstimatorNode(Node):
         self._arrivals: OrderedDict[int, int] = OrderedDict()  # image stamp -> arrival, ns
         # Stamp of the last image the engine took, ns; written by the inference thread only.
         self._last_accepted_ns: int | None = None
+        self._restart_after_ns = int(self.config.camera.restart_after_s * NS_PER_S)
         self._image_topics: dict[type, str] = {}  # message type -> resolved topic name
         self.outputs = OutputPublishers(self, self.config.outputs, self.config.frames,
                                         self.config.tf)
@@ -139,27 +146,54 @@ class EstimatorNode(Node):
         """
         now = self._now_ns()
         self.statistics.frame_received(now / NS_PER_S)
-        if self._out_of_order(msg, ns_from_stamp(msg.header.stamp)):
+        if self._stamp_step(msg, ns_from_stamp(msg.header.stamp)) is StampStep.OUT_OF_ORDER:
             return
         if self._slot.put((msg, now)):
             self.statistics.frame_dropped()
 
-    def _out_of_order(self, msg: Image | CompressedImage, stamp_ns: int) -> bool:
-        """Return whether the image's stamp is not after the last accepted one (then count it).
+    def _stamp_step(self, msg: Image | CompressedImage, stamp_ns: int) -> StampStep:
+        """Return how the image's stamp follows the last accepted one; count one out of order.
 
         The warning is throttled (``bad_frame_log_period_s``): however many come, one line per
         period; each one is counted in ``frames_out_of_order``.
         """
         last = self._last_accepted_ns
-        if last is None or stamp_ns > last:
-            return False
-        self.statistics.frame_out_of_order()
+        step = stamp_step(stamp_ns, last, self._restart_after_ns)
+        if step is StampStep.OUT_OF_ORDER:
+            self.statistics.frame_out_of_order()
+            self.get_logger().warning(
+                f'{self._image_topics[type(msg)]}: skipping an image stamped {stamp_ns} ns, not '
+                f'after the last accepted image stamped {last} ns (out of order or repeated; '
+                'counted in frames_out_of_order)',
+                throttle_duration_sec=self.config.bad_frame_log_period_s)
+        return step
+
+    def _restart_stream(self, msg: Image | CompressedImage, stamp_ns: int) -> None:
+        """Start a new stream whose first image is stamped ``stamp_ns`` (inference thread).
+
+        Everything the node keeps per stream starts afresh: the engine (world frame, pose
+        track, BA, output stage), the camera path, arrival times, the CameraInfos ahead of the
+        new stamp and, with the BA node, the keyframes sent (their late results are refused;
+        the BA node starts a new sequence when the keyframe stamps go back).
+        """
+        last = self._last_accepted_ns
+        self.statistics.stream_restarted()
         self.get_logger().warning(
-            f'{self._image_topics[type(msg)]}: skipping an image stamped {stamp_ns} ns, not '
-            f'after the last accepted image stamped {last} ns (out of order or repeated; '
-            'counted in frames_out_of_order)',
+            f'{self._image_topics[type(msg)]}: an image stamped {stamp_ns} ns, more than '
+            f'camera.restart_after_s before the last accepted image stamped {last} ns (a '
+            'replay loop, a camera restart or a far-future stamp before): a new stream starts '
+            'with it and the world frame restarts (counted in stream_restarts)',
             throttle_duration_sec=self.config.bad_frame_log_period_s)
-        return True
+        self.engine.reset()
+        self._engine_statistics = self.engine.statistics
+        self.path.clear()
+        self._arrivals.clear()
+        self._last_accepted_ns = None
+        with self._pairing_lock:
+            self._pairing.forget_after(stamp_ns)
+            self._paired_once = False  # the new stream's first image waits for its CameraInfo
+        if self._ba_node is not None:
+            self._ba_node.restart()
 
     def _on_camera_info(self, msg: CameraInfo) -> None:
         """Store a CameraInfo for pairing; a bad one is logged, counted and ignored."""
@@ -197,8 +231,11 @@ class EstimatorNode(Node):
     def _process(self, msg: Image | CompressedImage, arrival_ns: int) -> None:
         """Decode, pair with intrinsics, run the pipeline and publish one image."""
         stamp_ns = ns_from_stamp(msg.header.stamp)
-        if self._out_of_order(msg, stamp_ns):  # an image accepted since this one was put
+        step = self._stamp_step(msg, stamp_ns)  # an image may have been accepted since the put
+        if step is StampStep.OUT_OF_ORDER:
             return
+        if step is StampStep.RESTART:
+            self._restart_stream(msg, stamp_ns)
         self._arrivals[stamp_ns] = arrival_ns
         while len(self._arrivals) > ARRIVALS_KEPT:
             self._arrivals.popitem(last=False)

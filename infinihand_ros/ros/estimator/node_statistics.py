@@ -5,10 +5,10 @@ the time between the first and last event in the window (0 with fewer than two),
 from the second frame on. Latency is measured from the image stamp to the publication of its
 outputs, on the node's clock (ROS time; ``/clock`` when replaying with ``use_sim_time``), and
 from the image's arrival at the node to that publication (the node's own share, any clock).
-Counters (received, dropped, bad, published, out of order, and the frames processed with
-intrinsics from each source: a paired CameraInfo, the configured fallback, the model's field of
-view) count since start. Thread-safe: the image callback and the inference thread report
-concurrently.
+Counters (received, dropped, bad, published, out of order, stream restarts, and the frames
+processed with intrinsics from each source: a paired CameraInfo, the configured fallback, the
+model's field of view) count since start. Thread-safe: the image callback and the inference
+thread report concurrently.
 """
 
 from collections import deque
@@ -49,6 +49,8 @@ class StatisticsSnapshot:
             image's (late or repeated), since start.
         camera_tracking: frames published per camera-tracking state (``FrameResult.tracking``:
             tracked, predicted, reinitialised, static), since start.
+        stream_restarts: images stamped far before the last accepted one that started a new
+            stream (the engine reset, a new world frame), since start.
 
     """
 
@@ -66,6 +68,7 @@ class StatisticsSnapshot:
     intrinsics_sources: dict[str, int] = field(default_factory=dict)
     out_of_order: int = 0
     camera_tracking: dict[str, int] = field(default_factory=dict)
+    stream_restarts: int = 0
 
 
 def _rate(times: deque[float]) -> float:
@@ -93,7 +96,7 @@ class EstimatorStatistics:
         self._inputs: deque[float] = deque()
         self._outputs: deque[tuple[float, float, float]] = deque()  # (time, latencies)
         self._counts = {'received': 0, 'dropped': 0, 'bad': 0, 'published': 0,
-                        'out_of_order': 0}
+                        'out_of_order': 0, 'stream_restarts': 0}
         self._last_input_s: float | None = None
         self._intrinsics_sources: dict[str, int] = {}
         self._camera_tracking: dict[str, int] = {}
@@ -120,6 +123,11 @@ class EstimatorStatistics:
         """Count an image skipped for a stamp not after the last accepted one."""
         with self._lock:
             self._counts['out_of_order'] += 1
+
+    def stream_restarted(self) -> None:
+        """Count an image that started a new stream (its stamp far before the last one)."""
+        with self._lock:
+            self._counts['stream_restarts'] += 1
 
     def intrinsics_used(self, source: str) -> None:
         """Count a frame processed with intrinsics from ``source``."""
@@ -156,7 +164,7 @@ class EstimatorStatistics:
                 self._counts['bad'], self._counts['published'],
                 float('inf') if last_input is None else now_s - last_input,
                 dict(self._intrinsics_sources), self._counts['out_of_order'],
-                dict(self._camera_tracking))
+                dict(self._camera_tracking), self._counts['stream_restarts'])
 
     def _trim(self, now_s: float) -> None:
         """Drop events older than the window (caller holds the lock)."""
