@@ -1,13 +1,14 @@
-"""Launch the estimator and (by default) the bundle-adjustment node, with their params files.
+"""Launch the estimator (and, with bundle_adjustment:=node, the BA node) with their params files.
 
-    ros2 launch infinihand_ros estimator.launch.py [bundle_adjustment:=node|in_process|none]
+    ros2 launch infinihand_ros estimator.launch.py [bundle_adjustment:=none|in_process|node]
         [params_file:=...] [ba_params_file:=...] [namespace:=...] [image:=...]
         [camera_info:=...] [use_sim_time:=true]
 
 For real ROS 2 installs (launch and launch_ros are not among the pip wheels this repository is
 tested with; nothing imports this file there). ``bundle_adjustment:=node`` runs BA in the
 ``bundle_adjustment`` node next to the estimator; ``in_process`` in the estimator's engine;
-``none`` not at all (the values of the node's ``engine.bundle_adjustment``). Both nodes share
+``none`` (the default, as the node's) not at all: the per-frame camera tracker alone (the values
+of the node's ``engine.bundle_adjustment``). Both nodes share
 the namespace, so their ``bundle_adjustment/*`` topics meet.
 """
 
@@ -22,7 +23,7 @@ from launch.substitutions import LaunchConfiguration
 from launch_ros.actions import Node
 
 PACKAGE = 'infinihand_ros'
-BA_CHOICES = ['node', 'in_process', 'none']
+BA_CHOICES = ['none', 'in_process', 'node']
 
 
 def generate_launch_description() -> LaunchDescription:
@@ -35,7 +36,7 @@ def generate_launch_description() -> LaunchDescription:
                               default_value=str(config / 'bundle_adjustment.yaml'),
                               description='BA node parameters '
                                           '(config/bundle_adjustment.yaml layout)'),
-        DeclareLaunchArgument('bundle_adjustment', default_value='node', choices=BA_CHOICES,
+        DeclareLaunchArgument('bundle_adjustment', default_value='none', choices=BA_CHOICES,
                               description='where bundle adjustment runs'),
         DeclareLaunchArgument('namespace', default_value='', description='namespace of both'),
         DeclareLaunchArgument('image', default_value='image', description='image topic'),

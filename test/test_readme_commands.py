@@ -110,4 +110,4 @@ def test_node_help_names_the_hand_source_and_the_parameters() -> None:
     assert result.returncode == 0, result.stderr[-2000:]
     assert 'mediapipe by default' in result.stdout and 'synthetic' in result.stdout
     assert "hands.source ('mediapipe')" in result.stdout
-    assert "engine.bundle_adjustment ('in_process')" in result.stdout
+    assert "engine.bundle_adjustment ('none')" in result.stdout

@@ -20,13 +20,13 @@ def _node(**selection: object) -> EstimatorConfig:
 
 
 def test_defaults_are_the_engine_file_with_the_node_settings() -> None:
-    """Defaults: config/engine.yaml with MediaPipe hands and config/ba.yaml's in-process BA."""
+    """Defaults: config/engine.yaml with MediaPipe hands and no BA; in_process: config/ba.yaml."""
     node = engine_config_for(_node())
     assert node.hands.source == 'mediapipe' and load_engine_config().hands.source == 'infinihand'
-    assert load_engine_config().bundle_adjustment is None
-    assert node.bundle_adjustment == load_ba_config()
-    assert node == replace(load_engine_config(), hands=node.hands,
-                           bundle_adjustment=node.bundle_adjustment)
+    assert load_engine_config().bundle_adjustment is None and node.bundle_adjustment is None
+    assert node == replace(load_engine_config(), hands=node.hands)
+    assert engine_config_for(_node(bundle_adjustment='in_process')).bundle_adjustment == \
+        load_ba_config()
     config = engine_config_for(_node(mode='windowed', keyframe_interval=3,
                                      bundle_adjustment='none'))
     assert (config.mode, config.keyframe_interval) == ('windowed', 3)
@@ -39,7 +39,8 @@ def test_in_process_ba_never_makes_the_node_wait(tmp_path: Path) -> None:
     engine_file.write_text('engine:\n  bundle_adjustment:\n    pool: {trigger: 8, stride: 2}\n'
                            '    worker: {when_behind: wait}\n')
     assert load_engine_config(engine_file).bundle_adjustment.worker.when_behind == 'wait'
-    ba = engine_config_for(_node(config=str(engine_file))).bundle_adjustment
+    ba = engine_config_for(_node(config=str(engine_file),
+                                 bundle_adjustment='in_process')).bundle_adjustment
     assert ba.worker.when_behind == 'drop'
     assert ba.pool.trigger == 8
 

@@ -1,6 +1,7 @@
-"""The installed estimator with its default in-process BA: the worker lives and ends with it.
+"""The installed estimator with in-process BA: the worker lives and ends with it.
 
-The shipped params file runs bundle adjustment in the engine's worker process. The sample bag is
+The shipped params file with ``engine.bundle_adjustment: in_process`` runs bundle adjustment in
+the engine's worker process. The sample bag is
 replayed in, so BA has selections to refine, and the node is stopped while BA is still busy:
 SIGINT must end it with exit code 0 within the interrupt timeout and leave no process behind;
 after SIGKILL (no clean-up at all) the worker processes must still end by themselves.
@@ -100,10 +101,11 @@ def _replay(env: dict[str, str], log: Path) -> None:
 
 
 def test_sigint_stops_the_ba_worker_with_the_node(tmp_path: Path) -> None:
-    """BA on by default and busy; SIGINT: exit 0, no child left; a missing TF said once."""
+    """BA in-process and busy; SIGINT: exit 0, no child left; a missing TF said once."""
     env = ros_env(fresh_domain_id())
     node_log, out = tmp_path / 'estimator.log', tmp_path / 'out'
-    params = ['--params-file', str(SHARE / 'config' / 'estimator.yaml')]
+    params = ['--params-file', str(SHARE / 'config' / 'estimator.yaml'),
+              '-p', "engine.bundle_adjustment:='in_process'"]
     with running('estimator', ['--ros-args', *params, *REMAPS], env, node_log) as node, \
             running('record', ['-o', str(out), '/diagnostics'], env,
                     tmp_path / 'record.log') as recorder:
@@ -129,7 +131,8 @@ def test_sigkill_leaves_no_ba_worker_behind(tmp_path: Path) -> None:
     """Killed with BA busy: the worker processes notice the closed pipe and end by themselves."""
     env = ros_env(fresh_domain_id())
     node_log = tmp_path / 'estimator.log'
-    params = ['--params-file', str(SHARE / 'config' / 'estimator.yaml')]
+    params = ['--params-file', str(SHARE / 'config' / 'estimator.yaml'),
+              '-p', "engine.bundle_adjustment:='in_process'"]
     with running('estimator', ['--ros-args', *params, *REMAPS], env, node_log) as node:
         assert wait_for_text(node_log, READY, node, 120.0), node_log.read_text()
         workers = _worker_processes(node)

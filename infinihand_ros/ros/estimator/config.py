@@ -51,9 +51,10 @@ class EngineSelection:
     keyframe_interval: int = parameter(1, 'After the anchors, every n-th frame enters the '
                                        'streaming memory.', 1, _BIG_INT)
     bundle_adjustment: str = parameter(
-        'in_process', "Bundle adjustment: in_process (the engine's background worker process, "
-        'config/ba.yaml; frames never wait for it); node (the bundle_adjustment node, '
-        'config/bundle_adjustment.yaml); none (network poses only).', choices=BA_MODES)
+        'none', 'Bundle adjustment: none (each pose measured by the per-frame camera tracker '
+        "only; the best published poses on our test data); in_process (the engine's background "
+        'worker process, config/ba.yaml; frames never wait for it); node (the '
+        'bundle_adjustment node, config/bundle_adjustment.yaml).', choices=BA_MODES)
 
     def __post_init__(self) -> None:
         check_parameters(self, 'engine.')
