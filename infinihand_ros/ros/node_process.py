@@ -27,6 +27,7 @@ from infinihand_ros.core.parameters import parameters_help
 import rclpy
 from rclpy.executors import ExternalShutdownException
 from rclpy.executors import SingleThreadedExecutor
+from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.node import Node
 from rclpy.utilities import remove_ros_args
 PROFILE_FILE: Final = 'fastdds_profile.xml'
@@ -74,6 +75,16 @@ def parse_command_line(name: str, description: str, config_type: type,
     parser.parse_args(argv)
 
 
+#: rclpy's error for a wait set made on a context a signal has just shut down (SIGINT mid-spin).
+RCLError: Final = rclpy_implementation.RCLError
+
+
+def shut_down_by_signal(exc: BaseException) -> bool:
+    """Return whether ``exc`` only says that the context was shut down while spinning."""
+    return isinstance(exc, (KeyboardInterrupt, ExternalShutdownException)) or (
+        isinstance(exc, RCLError) and not rclpy.ok())
+
+
 def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = None) -> int:
     """Create the node with ``make_node`` and spin it until shut down; return the exit code.
 
@@ -91,8 +102,9 @@ def run_node(make_node: Callable[[], Node], name: str, args: list[str] | None = 
     executor.add_node(node)
     try:
         executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+    except (KeyboardInterrupt, ExternalShutdownException, RCLError) as exc:
+        if not shut_down_by_signal(exc):
+            raise
     finally:
         node.close()
         executor.shutdown()

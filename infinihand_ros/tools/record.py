@@ -16,6 +16,8 @@ import time
 from typing import Any, Final
 
 from infinihand_ros.bag.typestore import build_typestore
+from infinihand_ros.ros.node_process import RCLError
+from infinihand_ros.ros.node_process import shut_down_by_signal
 from infinihand_ros.ros.node_process import use_package_dds_profile
 from infinihand_ros.tools.replay import message_class
 import rclpy
@@ -131,8 +133,9 @@ def record(options: RecordOptions) -> dict[str, int]:
         end = time.monotonic() + options.duration_s if options.duration_s else None
         while rclpy.ok() and (end is None or time.monotonic() < end):
             executor.spin_once(timeout_sec=DISCOVERY_PERIOD_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+    except (KeyboardInterrupt, ExternalShutdownException, RCLError) as exc:
+        if not shut_down_by_signal(exc):
+            raise
     finally:
         writer.close()
         executor.shutdown()
