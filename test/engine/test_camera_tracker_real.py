@@ -3,7 +3,8 @@
 Two streams with exactly known cameras, run through the default engine with the real-image
 hand source, BA off (the tracker alone):
 - a still camera: one photo with a real hand (and the arm below it) pasted at positions that
-  move across it for 20 s at 10 Hz; the true pose is the identity in every frame;
+  move across it for 12 s at 10 Hz; the true pose is the identity in every frame
+  (``benchmarks/camera_tracking.py`` runs 20 s);
 - a turning camera: views of one photo from a camera turned about its centre (pure rotation,
   no parallax: the hardest case for depth-based tracking), with exactly known rotations.
 """
@@ -65,11 +66,11 @@ def _hand_and_arm(stills: list) -> np.ndarray:
 
 
 def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list) -> None:
-    """20 s at 10 Hz: drift at most 2 cm and 1 degree at every frame, in metres."""
+    """12 s at 10 Hz: drift at most 2 cm and 1 degree at every frame, in metres."""
     patch = _hand_and_arm(stills)
     background = stills[0]
     height, width = background.rgb.shape[:2]
-    steps = np.linspace(0.0, 1.0, 200)
+    steps = np.linspace(0.0, 1.0, 120)
     span_x, span_y = width - patch.shape[1] - 1, height - patch.shape[0] - 1
     corners = np.stack([span_x * (0.5 + 0.5 * np.sin(2 * np.pi * 2 * steps)),
                         span_y * (0.5 + 0.5 * np.sin(2 * np.pi * 3 * steps))], axis=1)
@@ -77,19 +78,19 @@ def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list) -> 
     with _engine() as engine:
         results = _run(engine, frames)
         statistics = engine.statistics['tracker']
-    assert len(results) == 200
+    assert len(results) == 120
     translation = np.array([np.linalg.norm(r.camera_pose.translation) for r in results])
     rotation = np.degrees([Rotation.from_matrix(r.camera_pose.rotation).magnitude()
                            for r in results])
     assert translation.max() <= 0.02, translation.max()
     assert rotation.max() <= 1.0, rotation.max()
-    assert statistics['states'].get('tracked', 0) >= 195, statistics
+    assert statistics['states'].get('tracked', 0) >= 117, statistics
 
 
 def test_turning_camera_followed_on_a_real_photo(stills: list) -> None:
-    """100 frames turning up to 10 degrees: every frame within 1 degree of the truth."""
+    """60 frames turning up to 10 degrees: every frame within 1 degree of the truth."""
     photo = stills[5]
-    steps = np.linspace(0.0, 1.0, 100)
+    steps = np.linspace(0.0, 1.0, 60)
     rotvecs = np.radians(np.stack([5.0 * np.sin(2 * np.pi * steps),
                                    10.0 * np.sin(np.pi * steps),
                                    8.0 * steps], axis=1))
@@ -101,5 +102,5 @@ def test_turning_camera_followed_on_a_real_photo(stills: list) -> None:
     relative = truth[0].T @ truth  # the world is the first frame's camera
     errors = np.degrees([Rotation.from_matrix(r.camera_pose.rotation @ t.T).magnitude()
                          for r, t in zip(results, relative)])
-    assert len(results) == 100
+    assert len(results) == 60
     assert errors.max() <= 1.0, (errors.max(), int(errors.argmax()))
