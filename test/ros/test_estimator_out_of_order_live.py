@@ -8,6 +8,8 @@ same stamps (a replay loop) restarts once: the second pass is published as a new
 camera path of its own.
 """
 
+from collections.abc import Iterator
+import contextlib
 import pathlib
 import time
 
@@ -136,8 +138,13 @@ class _Source:
         rclpy.shutdown(context=self.context)
 
 
-def test_late_and_repeated_stamps_are_counted_and_skipped(tmp_path: pathlib.Path) -> None:
-    """20 stale stamps: frames_out_of_order 20, one warning, no bad frame or restart."""
+@contextlib.contextmanager
+def _live_node(tmp_path: pathlib.Path) -> Iterator[tuple[np.ndarray, '_Source', pathlib.Path]]:
+    """Run the estimator with lossless input and a source it subscribes to.
+
+    Yields (a sample-bag image, the source, the node's log). On leaving, one more diagnostics
+    period is taken, and the node must still run and exit 0 on SIGINT.
+    """
     frame = next(iter(read_camera_frames(SAMPLE_BAG)))
     rgb = np.ascontiguousarray(frame.rgb[::2, ::2])
     domain = fresh_domain_id()
@@ -149,19 +156,25 @@ def test_late_and_repeated_stamps_are_counted_and_skipped(tmp_path: pathlib.Path
         source = _Source(domain)
         try:
             assert source.spin_until(lambda: source.images.get_subscription_count() > 0, 60.0)
-            accepted = source.send_stream(rgb, log)
-            last = accepted[-1]
-            late = [last - 1, last, *(last - k * LATE_STEP_NS for k in range(1, LATE - 1))]
-            for stamp in late:  # back to back: none may replace a frame waiting in the node
-                source.images.publish(_image(rgb, stamp))
-            source.images.publish(_image(rgb, last + NS_PER_S))
-            assert source.spin_until(lambda: source.count(
-                'frames_published') == len(accepted) + 1, 120.0), log.read_text()
+            yield rgb, source, log
             source.spin_until(lambda: False, 1.5)  # one more diagnostics period
         finally:
             source.close()
         assert node.poll() is None, log.read_text()
         assert interrupt(node) == 0
+
+
+def test_late_and_repeated_stamps_are_counted_and_skipped(tmp_path: pathlib.Path) -> None:
+    """20 stale stamps: frames_out_of_order 20, one warning, no bad frame or restart."""
+    with _live_node(tmp_path) as (rgb, source, log):
+        accepted = source.send_stream(rgb, log)
+        last = accepted[-1]
+        late = [last - 1, last, *(last - k * LATE_STEP_NS for k in range(1, LATE - 1))]
+        for stamp in late:  # back to back: none may replace a frame waiting in the node
+            source.images.publish(_image(rgb, stamp))
+        source.images.publish(_image(rgb, last + NS_PER_S))
+        assert source.spin_until(lambda: source.count(
+            'frames_published') == len(accepted) + 1, 120.0), log.read_text()
     values = source.values
     assert int(values['frames_out_of_order']) == LATE, values
     assert int(values['frames_received']) == len(accepted) + LATE + 1, values
@@ -177,27 +190,12 @@ def test_late_and_repeated_stamps_are_counted_and_skipped(tmp_path: pathlib.Path
 
 def test_the_same_stamps_again_restart_the_stream(tmp_path: pathlib.Path) -> None:
     """A replay loop: one restart and its warning, the second pass published, a new path."""
-    frame = next(iter(read_camera_frames(SAMPLE_BAG)))
-    rgb = np.ascontiguousarray(frame.rgb[::2, ::2])
-    domain = fresh_domain_id()
-    log, params = tmp_path / 'estimator.log', tmp_path / 'lossless_input.yaml'
-    params.write_text(LOSSLESS_INPUT)
-    with running('estimator', ['--ros-args', '--params-file', str(params)], ros_env(domain),
-                 log) as node:
-        assert wait_for_text(log, READY, node, 120.0), log.read_text()
-        source = _Source(domain)
-        try:
-            assert source.spin_until(lambda: source.images.get_subscription_count() > 0, 60.0)
-            first = source.send_stream(rgb, log, extra=2)
-            assert source.spin_until(lambda: source.path_stamps == first, 30.0)
-            second = source.send_stream(rgb, log)  # the same stamps from the start, fewer
-            assert source.spin_until(lambda: source.path_stamps == second, 30.0), (
-                source.path_stamps, first, second)
-            source.spin_until(lambda: False, 1.5)  # one more diagnostics period
-        finally:
-            source.close()
-        assert node.poll() is None, log.read_text()
-        assert interrupt(node) == 0
+    with _live_node(tmp_path) as (rgb, source, log):
+        first = source.send_stream(rgb, log, extra=2)
+        assert source.spin_until(lambda: source.path_stamps == first, 30.0)
+        second = source.send_stream(rgb, log)  # the same stamps from the start, fewer
+        assert source.spin_until(lambda: source.path_stamps == second, 30.0), (
+            source.path_stamps, first, second)
     values = source.values
     assert len(second) < len(first) and second == first[:len(second)]
     assert int(values['stream_restarts']) == 1, values
