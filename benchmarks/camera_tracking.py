@@ -21,9 +21,8 @@ from pathlib import Path
 from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.engine.config import load_engine_config
-from infinihand_ros.engine.hands.config import HandsConfig
-from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.synth.photo_streams import hand_and_arm_patch
 from infinihand_ros.synth.photo_streams import pasted_stream
 from infinihand_ros.synth.photo_streams import rotation_stream
 import numpy as np
@@ -31,24 +30,6 @@ from scipy.spatial.transform import Rotation
 import torch
 
 STILLS = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real_hands_stills'
-
-
-def hand_and_arm(stills: list) -> np.ndarray:
-    """Return a patch around the first real hand MediaPipe finds, grown down to its arm."""
-    detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
-    try:
-        for frame in stills:
-            detections = detector.detect(frame.rgb, 0)
-            detector.reset()
-            if detections:
-                joints = detections[0].joints_2d
-                height, width = frame.rgb.shape[:2]
-                x0, y0 = np.maximum(np.floor(joints.min(axis=0)).astype(int) - 20, 0)
-                x1, y1 = np.ceil(joints.max(axis=0)).astype(int) + 20
-                return frame.rgb[y0:min(y1 + (y1 - y0) // 2, height), x0:min(x1, width)]
-    finally:
-        detector.close()
-    raise SystemExit('MediaPipe found no hand in the stills')
 
 
 def run(frames: list, tracker: bool) -> tuple[list, dict]:
@@ -73,7 +54,10 @@ def main() -> None:
     args = parser.parse_args()
     torch.set_num_threads(1)
     stills = list(read_camera_frames(args.stills))
-    patch, background = hand_and_arm(stills), stills[0]
+    patch = hand_and_arm_patch([still.rgb for still in stills])
+    if patch is None:
+        raise SystemExit('MediaPipe found no hand in the stills')
+    background = stills[0]
     height, width = background.rgb.shape[:2]
     steps = np.linspace(0.0, 1.0, args.frames)
     corners = np.stack([(width - patch.shape[1] - 1) * (0.5 + 0.5 * np.sin(4 * np.pi * steps)),

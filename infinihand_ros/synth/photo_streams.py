@@ -4,13 +4,18 @@
   change only the intrinsics (the camera centre and orientation stay the photo's), so every
   frame's exact intrinsics are known and a hand's camera-frame position is the same in each.
 - ``rotation_stream``: views from cameras turned about the photo's centre (exact pure rotation).
-- ``pasted_stream``: a still camera with a patch (a hand and arm) moving across the photo.
+- ``pasted_stream``: a still camera with a patch (a hand and arm, ``hand_and_arm_patch``) moving
+  across the photo.
 """
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.engine.hands.config import HandsConfig
+from infinihand_ros.engine.hands.config import MEDIAPIPE
+from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 import numpy as np
 
 
@@ -83,3 +88,25 @@ def pasted_stream(background: np.ndarray, patch: np.ndarray, corners: np.ndarray
         image[y0:y0 + height, x0:x0 + width] = patch
         frames.append(CropFrame(image, int(index * 1e9 / fps), intrinsics))
     return frames
+
+
+def hand_and_arm_patch(photos: Sequence[np.ndarray], margin_px: int = 20) -> np.ndarray | None:
+    """Return a patch of the first RGB photo where MediaPipe finds a hand, grown down to its arm.
+
+    The patch is the hand's landmark box grown by ``margin_px`` and by half its height downwards
+    (where the arm is); None when no photo shows a hand.
+    """
+    detector = MediaPipeDetector(HandsConfig(source=MEDIAPIPE))
+    try:
+        for rgb in photos:
+            detections = detector.detect(rgb, 0)
+            detector.reset()
+            if detections:
+                joints = detections[0].joints_2d
+                height, width = rgb.shape[:2]
+                x0, y0 = np.maximum(np.floor(joints.min(axis=0)).astype(int) - margin_px, 0)
+                x1, y1 = np.ceil(joints.max(axis=0)).astype(int) + margin_px
+                return rgb[y0:min(y1 + (y1 - y0) // 2, height), x0:min(x1, width)]
+    finally:
+        detector.close()
+    return None

@@ -13,9 +13,8 @@ from dataclasses import replace
 
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.engine.config import load_engine_config
-from infinihand_ros.engine.hands.config import HandsConfig
-from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.synth.photo_streams import hand_and_arm_patch
 from infinihand_ros.synth.photo_streams import pasted_stream
 from infinihand_ros.synth.photo_streams import rotation_stream
 import numpy as np
@@ -45,29 +44,10 @@ def _run(engine: StreamingEngine, frames: list) -> list:
     return results + engine.flush()
 
 
-def _hand_and_arm(stills: list) -> np.ndarray:
-    """Return a patch of a photo around a real hand, grown down towards its arm."""
-    detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
-    try:
-        for frame in stills:
-            detections = detector.detect(frame.rgb, 0)
-            detector.reset()
-            if detections:
-                joints = detections[0].joints_2d
-                x0, y0 = np.floor(joints.min(axis=0)).astype(int) - 20
-                x1, y1 = np.ceil(joints.max(axis=0)).astype(int) + 20
-                height, width = frame.rgb.shape[:2]
-                x0, y0 = max(x0, 0), max(y0, 0)
-                x1, y1 = min(x1, width), min(y1 + (y1 - y0) // 2, height)  # and the arm
-                return frame.rgb[y0:y1, x0:x1]
-    finally:
-        detector.close()
-    pytest.fail('MediaPipe found no hand in any still')
-
-
 def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list) -> None:
     """12 s at 10 Hz: drift at most 2 cm and 1 degree at every frame, in metres."""
-    patch = _hand_and_arm(stills)
+    patch = hand_and_arm_patch([still.rgb for still in stills])
+    assert patch is not None, 'MediaPipe found no hand in any still'
     background = stills[0]
     height, width = background.rgb.shape[:2]
     steps = np.linspace(0.0, 1.0, 120)
