@@ -63,7 +63,7 @@ class CameraSpaceFrame:
         depth_model: (H, W) float32 model-unit depth at the source size for keyframes, else
             None (pixels a crop cut away are NaN).
         view: what the camera tracker needs (model-input grey image, depth, intrinsics),
-            without hand boxes yet.
+            without hand boxes yet; None when no tracker runs.
 
     """
 
@@ -73,7 +73,7 @@ class CameraSpaceFrame:
     hands: tuple[HandState, ...]
     depth_ratios: np.ndarray
     depth_model: np.ndarray | None
-    view: TrackingView
+    view: TrackingView | None
 
 
 def tracking_view(frame: PreparedFrame, depth: torch.Tensor, intrinsics_model: np.ndarray
@@ -93,9 +93,9 @@ def _numpy(tensor: torch.Tensor) -> np.ndarray:
     return tensor.detach().double().cpu().numpy()
 
 
-def split_frames(output: CameraSpaceOutput, frames: list[PreparedFrame]
+def split_frames(output: CameraSpaceOutput, frames: list[PreparedFrame], views: bool = True
                  ) -> list[CameraSpaceFrame]:
-    """Return one record per frame of a B=1 block, in order."""
+    """Return one record per frame of a B=1 block, in order (``views``: with tracker views)."""
     hands = output.hands
     frame_of_hand = output.boxes.batch_index.cpu().numpy()
     ratios = _numpy(hand_depth_ratios(output.geometry.depth.flatten(0, 1),
@@ -128,14 +128,15 @@ def split_frames(output: CameraSpaceOutput, frames: list[PreparedFrame]
         if frame.keyframe:
             depth = mapping.map_to_source(
                 output.geometry.depth[0, row].detach().float().cpu().numpy())
-        view = tracking_view(frame, output.geometry.depth[0, row], intrinsics[row])
+        view = (tracking_view(frame, output.geometry.depth[0, row], intrinsics[row]) if views
+                else None)
         records.append(CameraSpaceFrame(frame, poses[row], used, states, ratios[rows], depth,
                                         view))
     return records
 
 
 def split_geometry(geometry: GeometryOutput, T_world_cam: torch.Tensor,
-                   intrinsics: torch.Tensor, frames: list[PreparedFrame]
+                   intrinsics: torch.Tensor, frames: list[PreparedFrame], views: bool = True
                    ) -> list[CameraSpaceFrame]:
     """Return one hand-less record per frame of a B=1 block (a source outside the model).
 
@@ -153,7 +154,7 @@ def split_geometry(geometry: GeometryOutput, T_world_cam: torch.Tensor,
         if frame.keyframe:
             depth = frame.mapping.map_to_source(geometry.depth[0, row].detach().float().cpu()
                                                 .numpy())
-        view = tracking_view(frame, geometry.depth[0, row], matrices[row])
+        view = tracking_view(frame, geometry.depth[0, row], matrices[row]) if views else None
         records.append(CameraSpaceFrame(frame, poses[row], used, (), np.zeros(0), depth, view))
     return records
 

@@ -193,7 +193,8 @@ class CameraTracker:
             self._set_reference(view, prior, *self._lift(view))
             return TrackedFrame(prior, 'tracked', 0)
         moved, survivors = self._follow(reference, view)
-        if survivors.sum() >= self.config.min_inliers:
+        alive = int(survivors.sum())
+        if alive >= self.config.min_inliers:
             solved = self._solve(reference, view, moved, survivors, prior)
             if solved is not None:
                 T_raw, inliers = solved
@@ -206,7 +207,7 @@ class CameraTracker:
         self._lost += 1
         had = len(reference.pixels)
         starved = had < self.config.min_inliers
-        cut = (survivors.sum() < self.config.cut_fraction * had
+        cut = (alive < self.config.cut_fraction * had
                and _sharpness(view.gray) >= self.config.blur_ratio * reference.sharpness)
         if starved or cut or self._lost >= self.config.max_lost_frames:
             points, pixels = self._lift(view)

@@ -88,6 +88,7 @@ class StreamingEngine:
         """
         self.config = config or load_engine_config()
         self.static = self.config.camera_motion == 'static'
+        self._tracking = self.config.tracker.enabled and not self.static  # images to track
         if ba_backend is not None and self.static:
             raise ConfigError('engine.camera_motion: static takes no bundle-adjustment backend '
                               '(a fixed camera is the world frame)')
@@ -341,9 +342,9 @@ class StreamingEngine:
             if source.uses_hand_branch:
                 output: CameraSpaceOutput = self.model.run_hands(images, geometry, poses, used,
                                                                  None, self._detection)
-                records = split_frames(output, frames)
+                records = split_frames(output, frames, self._tracking)
             else:
-                records = split_geometry(geometry, poses, used, frames)
+                records = split_geometry(geometry, poses, used, frames, self._tracking)
             return [self._source_hands(geometry, row, record)
                     for row, record in enumerate(records)]
 
@@ -390,7 +391,7 @@ class StreamingEngine:
         frame = record.frame
         track = self.pose_track
         view = None
-        if not self.static:
+        if record.view is not None:
             boxes = [frame.mapping.points_to_model(hand.box_xyxy.reshape(2, 2)).reshape(4)
                      for hand in record.hands]
             view = dataclasses.replace(record.view, hand_boxes=np.array(boxes).reshape(-1, 4))

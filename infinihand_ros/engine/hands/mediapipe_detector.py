@@ -67,13 +67,14 @@ class MediaPipeDetector:
 
     def detect(self, image: np.ndarray, frame_index: int) -> Sequence[Detection2D]:
         """Return the hands in an RGB uint8 image, sides in our convention, source pixels."""
-        histogram = colour_histogram(image)
-        self.cut = (self._histogram is not None and histogram_distance(
-            self._histogram, histogram) > self.config.scene_cut_distance)
-        if self.cut:
-            self._restart()
-            self.scene_cuts += 1
-        self._histogram = histogram
+        if self.config.scene_cut_distance < 1.0:  # 1: never a cut, nothing to compare
+            histogram = colour_histogram(image)
+            self.cut = (self._histogram is not None and histogram_distance(
+                self._histogram, histogram) > self.config.scene_cut_distance)
+            if self.cut:
+                self._restart()
+                self.scene_cuts += 1
+            self._histogram = histogram
         height, width = image.shape[:2]
         scale = min(1.0, MAX_SIDE_PX / max(height, width))
         small = image if scale == 1.0 else cv2.resize(

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import math
 from typing import Final
 
+from infinihand_ros.engine import camera_tracker
 from infinihand_ros.ros.estimator.camera_info_pairing import FROM_CAMERA_INFO
 from infinihand_ros.ros.estimator.camera_info_pairing import FROM_FALLBACK
 from infinihand_ros.ros.estimator.camera_info_pairing import FROM_MODEL
@@ -33,7 +34,7 @@ UNAVAILABLE: Final = {WAITING: 'not seen yet', LOST: 'lost'}
 #: Intrinsics sources, each reported as ``intrinsics_from_<source>`` (frames since start).
 INTRINSICS_SOURCES: Final = (FROM_CAMERA_INFO, FROM_FALLBACK, FROM_MODEL)
 #: Camera-tracking states, each reported as ``camera_<state>`` (published frames since start).
-TRACKING_STATES: Final = ('tracked', 'predicted', 'reinitialised', 'static')
+TRACKING_STATES: Final = (*camera_tracker.TRACKING_STATES, 'static')
 
 
 @dataclass(frozen=True)
