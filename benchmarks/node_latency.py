@@ -1,14 +1,20 @@
-"""Live estimator figures: output rate, latency and drops with the sample bag replayed at 10/30 Hz.
+"""Live estimator figures: output rate, latency and drops with a bag replayed at 10/30 Hz.
 
-    python benchmarks/node_latency.py [--rates 10 30] [--ba none in_process node] [--seconds S]
-        [--json]
+    python benchmarks/node_latency.py [--rates 10 30] [--ba none in_process node]
+        [--profiles default teleop] [--frames sample|real] [--seconds S] [--json]
 
 Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
-``source scripts/env.sh``. For each input rate and BA setting it starts the installed
+``source scripts/env.sh``. For each profile, input rate and BA setting it starts the installed
 ``estimator`` (with ``engine.bundle_adjustment`` none, in_process, or ``node`` plus the installed
-``bundle_adjustment`` node) on a private DDS domain, replays the first ``--seconds`` of the
-sample bag (10 FPS; ``replay --rate r/10``) and listens in this process to the replayed images
-and to ``~/camera_pose``.
+``bundle_adjustment`` node) on a private DDS domain, replays the frames (10 FPS; ``replay
+--rate r/10``) and listens in this process to the replayed images and to ``~/camera_pose``.
+Profiles: ``default`` (the node's defaults) and ``teleop`` (``camera.motion: static``, a fixed
+camera, with the default MediaPipe hands: the teleoperation case; BA does not apply). Frames:
+``sample``, the first ``--seconds`` of the sample bag (synthetic, 518x378 JPEG), or ``real``, a
+15 s crop video panning over a real hand photo from ``../shared/data/real_hands_stills``
+(640x480 JPEG with exact CameraInfo; ``synth/photo_streams.py``). Beside the node it times
+MediaPipe Hands alone on the same decoded frames, one after another in this process: the floor
+of any node whose hands come from it, printed with the node's ratio to it.
 
 Latency is measured as receive time minus the replay's publish time, on this machine's
 monotonic clock: the time this process receives an output minus the time it received the image
@@ -34,10 +40,20 @@ import time
 
 from diagnostic_msgs.msg import DiagnosticArray
 from geometry_msgs.msg import PoseStamped
+from infinihand_ros.bag.camera_msgs import camera_info_to_msg
+from infinihand_ros.bag.camera_msgs import compressed_msg_to_image
+from infinihand_ros.bag.camera_msgs import image_to_compressed_msg
+from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.bag.typestore import build_typestore
+from infinihand_ros.bag.typestore import CAMERA_INFO_MSG
+from infinihand_ros.bag.typestore import COMPRESSED_IMAGE_MSG
+from infinihand_ros.core.topics import CAMERA_FRAME_ID
 from infinihand_ros.core.units import NS_PER_S
+from infinihand_ros.engine.hands.config import HandsConfig
+from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.ros.node_process import use_package_dds_profile
+from infinihand_ros.synth.photo_streams import crop_stream
 import numpy as np
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
@@ -55,6 +71,11 @@ IMAGE_TOPIC = '/camera/image_raw/compressed'
 INFO_TOPIC = '/camera/camera_info'
 POSE_TOPIC = '/infinihand_estimator/camera_pose'
 REMAPS = ['-r', f'image/compressed:={IMAGE_TOPIC}', '-r', f'camera_info:={INFO_TOPIC}']
+#: Node parameters of each profile.
+PROFILES = {'default': [], 'teleop': ['-p', 'camera.motion:=static']}
+STILLS = ROOT.parent / 'shared' / 'data' / 'real_hands_stills'
+REAL_SECONDS = 15.0
+JPEG_QUALITY = 90
 READY = 'ready:'
 SETTLE_S = 3.0
 MS_PER_S = 1e3
@@ -64,6 +85,7 @@ MS_PER_S = 1e3
 class RunFigures:
     """What one run measured."""
 
+    profile: str
     rate_hz: float
     bundle_adjustment: str
     images: int
@@ -86,6 +108,11 @@ def parse_args() -> argparse.Namespace:
                         choices=['none', 'in_process', 'node'],
                         help="bundle adjustment: none, the engine's worker (the node's "
                         'default) or the BA node')
+    parser.add_argument('--profiles', nargs='+', default=list(PROFILES), choices=list(PROFILES),
+                        help='default: the node as shipped; teleop: a fixed camera '
+                        '(camera.motion static) with MediaPipe hands')
+    parser.add_argument('--frames', choices=('sample', 'real'), default='sample',
+                        help='sample: the sample bag; real: a crop video of a real hand photo')
     parser.add_argument('--seconds', type=float, default=0.0,
                         help='replay only the first S seconds of the bag (0: all of it)')
     parser.add_argument('--json', action='store_true', help='print one JSON line per run')
@@ -172,7 +199,8 @@ def stop(process: subprocess.Popen) -> None:
     process.wait(60)
 
 
-def figures(rate_hz: float, ba: str, images: int, listener: Listener) -> RunFigures:
+def figures(profile: str, rate_hz: float, ba: str, images: int, listener: Listener
+            ) -> RunFigures:
     """Compute one run's figures from what the listener received."""
     pairs = [(listener.outputs[s] - listener.inputs[s]) / NS_PER_S * MS_PER_S
              for s in listener.outputs if s in listener.inputs]
@@ -181,20 +209,89 @@ def figures(rate_hz: float, ba: str, images: int, listener: Listener) -> RunFigu
     span_s = (times[-1] - times[0]) / NS_PER_S if len(times) > 1 else 0.0
     values = listener.diagnostics
     received = int(values.get('frames_received', 0))
-    return RunFigures(rate_hz, ba, images, len(times),
+    return RunFigures(profile, rate_hz, ba, images, len(times),
                       (len(times) - 1) / span_s if span_s else 0.0, float(p50), float(p95),
                       received, int(values.get('frames_dropped', 0)), images - received,
                       int(values.get('ba_results_applied', 0)))
 
 
-def run_once(rate_hz: float, ba: str, segment: Path, images: int, work: Path) -> RunFigures:
+def write_real_segment(out: Path) -> int:
+    """Write a crop video over a real hand photo (JPEG images, CameraInfo) to ``out``."""
+    frames = list(read_camera_frames(STILLS))
+    detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
+    try:
+        for frame in frames:
+            found = detector.detect(frame.rgb, 0)
+            detector.reset()
+            if len(found) == 1 and found[0].confidence > 0.9:
+                break
+        else:
+            raise RuntimeError(f'no photo in {STILLS} with one clear hand')
+    finally:
+        detector.close()
+    count = int(REAL_SECONDS * BAG_FPS)
+    phase = np.linspace(0.0, 1.0, count)
+    centres = found[0].joints_2d.mean(axis=0) + np.stack(
+        [40 * np.sin(2 * np.pi * phase), 25 * np.cos(2 * np.pi * phase)], axis=1)
+    crops = crop_stream(frame.rgb, frame.intrinsics, centres, np.full(count, 480.0),
+                        size=(640, 480), fps=BAG_FPS)
+    store = build_typestore()
+    with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        image_topic = writer.add_connection(IMAGE_TOPIC, COMPRESSED_IMAGE_MSG, typestore=store)
+        info_topic = writer.add_connection(INFO_TOPIC, CAMERA_INFO_MSG, typestore=store)
+        for crop in crops:
+            stamp = NS_PER_S + crop.timestamp_ns  # the stream starts 1 s after the epoch
+            image = image_to_compressed_msg(store, crop.rgb, stamp, CAMERA_FRAME_ID, 'jpeg',
+                                            JPEG_QUALITY)
+            info = camera_info_to_msg(store, crop.intrinsics, stamp, CAMERA_FRAME_ID)
+            writer.write(info_topic, stamp, store.serialize_cdr(info, CAMERA_INFO_MSG))
+            writer.write(image_topic, stamp, store.serialize_cdr(image, COMPRESSED_IMAGE_MSG))
+    return len(crops)
+
+
+@dataclass(frozen=True)
+class MediaPipeFigures:
+    """MediaPipe Hands alone on the segment's frames, one after another."""
+
+    frames: int
+    fps: float
+    p50_ms: float
+    p95_ms: float
+    hands_found: int
+
+
+def mediapipe_alone(segment: Path) -> MediaPipeFigures:
+    """Decode the segment's images as the node does and time MediaPipe Hands on each."""
+    images = []
+    with AnyReader([segment], default_typestore=build_typestore()) as reader:
+        connections = [c for c in reader.connections if c.topic == IMAGE_TOPIC]
+        for connection, _, raw in reader.messages(connections=connections):
+            images.append(compressed_msg_to_image(reader.deserialize(raw, connection.msgtype)))
+    detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
+    times, found = [], 0
+    try:
+        for index, image in enumerate(images):
+            start_s = time.perf_counter()
+            found += len(detector.detect(image, index))
+            times.append(time.perf_counter() - start_s)
+    finally:
+        detector.close()
+    p50, p95 = np.percentile(times, [50.0, 95.0]) * MS_PER_S
+    return MediaPipeFigures(len(images), len(images) / sum(times), float(p50), float(p95),
+                            found)
+
+
+def run_once(profile: str, rate_hz: float, ba: str, segment: Path, images: int,
+             work: Path) -> RunFigures:
     """Start the nodes, replay the segment at ``rate_hz``, return the figures."""
     # Quoted so the value stays a string whatever it is.
-    params = ['--ros-args', '-p', f"engine.bundle_adjustment:='{ba}'", *REMAPS]
-    estimator = start('estimator', params, work / f'estimator_{ba}_{rate_hz:g}.log')
+    params = ['--ros-args', '-p', f"engine.bundle_adjustment:='{ba}'", *PROFILES[profile],
+              *REMAPS]
+    log = work / f'estimator_{profile}_{ba}_{rate_hz:g}.log'
+    estimator = start('estimator', params, log)
     helpers = []
     try:
-        wait_ready(estimator, work / f'estimator_{ba}_{rate_hz:g}.log')
+        wait_ready(estimator, log)
         if ba == 'node':
             helpers.append(start('bundle_adjustment', [], work / f'ba_{rate_hz:g}.log'))
             wait_ready(helpers[0], work / f'ba_{rate_hz:g}.log')
@@ -204,14 +301,31 @@ def run_once(rate_hz: float, ba: str, segment: Path, images: int, work: Path) ->
         replay.wait()
         time.sleep(SETTLE_S)  # the last inference and a diagnostics period
         listener.close()
-        return figures(rate_hz, ba, images, listener)
+        return figures(profile, rate_hz, ba, images, listener)
     finally:
         for process in [estimator, *helpers]:
             stop(process)
 
 
+def _print(result: RunFigures, alone: MediaPipeFigures, as_json: bool) -> None:
+    """Print one run's figures (with its ratios to MediaPipe alone)."""
+    rate_ratio = result.output_rate_hz / alone.fps
+    latency_ratio = result.latency_p95_ms / alone.p95_ms
+    if as_json:
+        print(json.dumps({**asdict(result), 'output_rate_to_mediapipe_fps': rate_ratio,
+                          'latency_p95_to_mediapipe_p95': latency_ratio}), flush=True)
+        return
+    print(f'{result.profile:7s} {result.rate_hz:5.1f} Hz in, BA {result.bundle_adjustment:4s}: '
+          f'{result.outputs}/{result.images} frames out '
+          f'({100.0 * result.outputs / result.images:.0f} %) at {result.output_rate_hz:.1f} Hz '
+          f'({rate_ratio:.2f}x MediaPipe alone), latency p50 {result.latency_p50_ms:.0f} ms '
+          f'p95 {result.latency_p95_ms:.0f} ms ({latency_ratio:.1f}x MediaPipe p95), dropped '
+          f'{result.frames_dropped}, not received {result.not_received}, BA results '
+          f'{result.ba_results_applied}', flush=True)
+
+
 def main() -> None:
-    """Run every rate and BA setting; print the figures."""
+    """Run every profile, rate and BA setting; print the figures."""
     args = parse_args()
     # A private graph for this run; the nodes started inherit it.
     os.environ['ROS_DOMAIN_ID'] = str(1 + os.getpid() % 100)
@@ -221,17 +335,19 @@ def main() -> None:
     try:
         with tempfile.TemporaryDirectory(prefix='node_latency_') as tmp:
             work = Path(tmp)
-            images = write_segment(args.seconds, work / 'segment')
-            for ba in args.ba:
-                for rate in args.rates:
-                    result = run_once(rate, ba, work / 'segment', images, work)
-                    print(json.dumps(asdict(result)) if args.json else
-                          f'{rate:5.1f} Hz in, BA {ba:4s}: {result.outputs}/{images} frames '
-                          f'out at {result.output_rate_hz:.1f} Hz, latency p50 '
-                          f'{result.latency_p50_ms:.0f} ms p95 {result.latency_p95_ms:.0f} ms, '
-                          f'dropped {result.frames_dropped}, not received '
-                          f'{result.not_received}, BA results {result.ba_results_applied}',
-                          flush=True)
+            segment = work / 'segment'
+            images = (write_real_segment(segment) if args.frames == 'real'
+                      else write_segment(args.seconds, segment))
+            alone = mediapipe_alone(segment)
+            print(json.dumps({'mediapipe_alone': asdict(alone)}) if args.json else
+                  f'MediaPipe Hands alone on the {alone.frames} {args.frames} frames: '
+                  f'{alone.fps:.1f} frames/s, p50 {alone.p50_ms:.1f} ms p95 '
+                  f'{alone.p95_ms:.1f} ms, {alone.hands_found} hands found', flush=True)
+            for profile in args.profiles:
+                for ba in (['none'] if profile == 'teleop' else args.ba):
+                    for rate in args.rates:
+                        result = run_once(profile, rate, ba, segment, images, work)
+                        _print(result, alone, args.json)
     finally:
         rclpy.try_shutdown()
 

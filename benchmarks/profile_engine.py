@@ -1,21 +1,26 @@
 """Where a frame's time goes: the engine's stages timed on the sample bag, per mode.
 
     python benchmarks/profile_engine.py [--config config/engine.yaml] [--frames 150]
-        [--modes per_frame windowed] [--threads N] [--json]
+        [--modes per_frame windowed] [--threads N] [--hand-source mediapipe]
+        [--camera-motion static] [--json]
 
 Streams the sample bag's frames (``data/sample_bag``, cycled to ``--frames``) through the
 engine in each mode and times every stage with wall-clock timers wrapped around it: JPEG decode
-(the node's ``compressed_msg_to_image`` on the frames re-encoded at quality 90), fitting to the
-model (check, letterbox, to a tensor), the geometry branch (aggregator with its frame and global
-attention blocks and the global blocks' memory attention, camera head, depth head, mask head),
-hand detection from the masks, the hand branch, the split into per-frame records, engine
-bookkeeping (the pose track, world placement, the output stage) and the node's message building
-(``OutputPublishers.publish`` with publishers that send nothing). Nested stages are indented
-under their parent. Per stage it prints milliseconds per frame (total time / frames) and the
-calls; the main thread's wall time per frame is printed beside it. In windowed mode the hand
-branch runs in the engine's worker thread, overlapping the next window's geometry, so its stages
-do not add up to the wall time. For the global attention it also prints the keys each query
-frame attends over (the memory it sees plus itself). Figures only; nothing is asserted.
+(the node's ``compressed_msg_to_image`` on the frames re-encoded at quality 90), preparing the
+frame (check, letterbox, to a tensor; the hand source's detection when it reads the image), the
+geometry branch (aggregator with its frame and global attention blocks and the global blocks'
+memory attention, camera head, mask head), the hands (the hand branch with detection from the
+masks, the split into per-frame records, the hand source's lifting and gating), engine
+bookkeeping (the pose track with its tracker, world placement, the output stage), the depth
+head (run on demand inside the bookkeeping, so its time is part of that stage's too) and the
+node's message building (``OutputPublishers.publish`` with publishers that send nothing).
+Nested stages are indented under their parent. Per stage it prints milliseconds per frame
+(total time / frames) and the calls; the main thread's wall time per frame is printed beside
+it, with how many frames ran the depth head and how many skipped the geometry branch (a fixed
+camera). In windowed mode the hand branch runs in the engine's worker thread, overlapping the
+next window's geometry, so its stages do not add up to the wall time. For the global attention
+it also prints the keys each query frame attends over (the memory it sees plus itself).
+Figures only; nothing is asserted.
 """
 
 import argparse
@@ -35,12 +40,16 @@ from infinihand_ros.bag.camera_msgs import compressed_msg_to_image
 from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.engine import streaming_engine
+from infinihand_ros.engine.config import CAMERA_MOTIONS
 from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.hands.config import HAND_SOURCES
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.output.camera_path import CameraPath
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.model import infinihand_model
+from infinihand_ros.ros.estimator.config import FrameIds
 from infinihand_ros.ros.estimator.config import OutputSwitches
+from infinihand_ros.ros.estimator.config import TFSettings
 from infinihand_ros.ros.estimator.publishers import OutputPublishers
 import numpy as np
 import torch
@@ -100,17 +109,22 @@ def _instrument(stack: contextlib.ExitStack, engine: StreamingEngine, clock: Sta
     """Wrap the engine's and the model's stages in timers (undone when ``stack`` closes)."""
     model = engine.model
     geometry = model.geometry
+    source = engine._hand_source
     stages: list[tuple[object, str, str]] = [
-        (engine, '_prepare', 'fit to the model'),
+        (engine, '_prepare', 'prepare (fit to the model)'),
+        (source, 'detect', 'prepare (fit to the model)/hand source detection'),
         (model, 'run_geometry', 'geometry branch'),
         (geometry.aggregator, 'forward', 'geometry branch/aggregator'),
         (geometry.camera_head, 'forward', 'geometry branch/camera head'),
-        (geometry.depth_head, 'forward', 'geometry branch/depth head'),
         (geometry.mask_head, 'forward', 'geometry branch/mask head'),
-        (model, 'run_hands', 'hands'),
-        (infinihand_model, '_detect_hands', 'hands/detection from masks'),
-        (model.hand_branch, 'forward', 'hands/hand branch'),
+        (geometry.depth_head, 'forward', 'depth head (on demand)'),
+        (engine, '_hands', 'hands'),
+        (model, 'run_hands', 'hands/hand branch'),
+        (infinihand_model, '_detect_hands', 'hands/hand branch/detection from masks'),
+        (model.hand_branch, 'forward', 'hands/hand branch/crops to MANO'),
         (streaming_engine, 'split_frames', 'hands/split into frames'),
+        (streaming_engine, 'split_geometry', 'hands/split into frames'),
+        (source, 'camera_hands', 'hands/hand source (lift, gate)'),
         (engine, '_finish', 'engine bookkeeping'),
         (engine.pose_track, 'add', 'engine bookkeeping/tracker'),
         (engine.pose_track, 'observe_scale', 'engine bookkeeping/tracker'),
@@ -173,7 +187,8 @@ def _sample_frames() -> list[tuple[bytes, Any]]:
 def _profile(engine: StreamingEngine, frames: list[tuple[bytes, Any]], count: int) -> dict:
     """Stream ``count`` frames through ``engine``; return per-stage ms/frame and the wall."""
     clock = StageClock()
-    publishers = OutputPublishers(_SilentNode(), OutputSwitches(), 'world')
+    publishers = OutputPublishers(_SilentNode(), OutputSwitches(), FrameIds(),
+                                  TFSettings(enabled=False))
     path = CameraPath(PATH_LENGTH)
     results = 0
     with contextlib.ExitStack() as stack:
@@ -216,7 +231,10 @@ def _print(mode: str, figures: dict) -> None:
     """Print one mode's profile as an indented table."""
     print(f'{mode}: {figures["fps"]:.1f} frames/s, wall {figures["wall_ms_per_frame"]:.1f} '
           f'ms/frame; global attention keys per query frame '
-          f'{figures["global_keys_per_query_frame_mean"]:.0f}')
+          f'{figures["global_keys_per_query_frame_mean"]:.0f}; frames with depth '
+          f'{figures["engine"]["frames_with_depth"]}, without geometry '
+          f'{figures["engine"]["frames_without_geometry"]} of '
+          f'{figures["engine"]["frames_pushed"]}')
     stages = figures['stages_ms_per_frame']
     for name in sorted(stages, key=_stage_order):
         depth = name.count('/')
@@ -224,8 +242,9 @@ def _print(mode: str, figures: dict) -> None:
         print(f'  {label:52s} {stages[name]:8.2f} ms/frame  {figures["calls"][name]:6d} calls')
 
 
-_TOP = ('decode (JPEG)', 'push (engine, main thread)', 'fit to the model', 'geometry branch',
-        'hands', 'engine bookkeeping', 'publishing (message building)')
+_TOP = ('decode (JPEG)', 'push (engine, main thread)', 'prepare (fit to the model)',
+        'geometry branch', 'hands', 'engine bookkeeping', 'depth head (on demand)',
+        'publishing (message building)')
 
 
 def _stage_order(name: str) -> tuple[int, str]:
@@ -243,21 +262,32 @@ def main() -> None:
                         default=['per_frame', 'windowed'])
     parser.add_argument('--threads', type=int, default=None, help='torch threads (default: '
                         "torch's)")
+    parser.add_argument('--hand-source', choices=HAND_SOURCES, default=None,
+                        help="engine.hands.source (default: the config's)")
+    parser.add_argument('--camera-motion', choices=CAMERA_MOTIONS, default=None,
+                        help="engine.camera_motion (default: the config's)")
     parser.add_argument('--json', action='store_true', help='print one JSON line')
     args = parser.parse_args()
     if args.threads is not None:
         torch.set_num_threads(args.threads)
     config = load_engine_config(args.config)
+    if args.hand_source is not None:
+        config = replace(config, hands=replace(config.hands, source=args.hand_source))
+    if args.camera_motion is not None:
+        config = replace(config, camera_motion=args.camera_motion)
     model = build_model(config)
     frames = _sample_frames()
     figures = {}
     for mode in args.modes:
         with StreamingEngine(replace(config, mode=mode), model) as engine:
             figures[mode] = _profile(engine, frames, args.frames)
+            figures[mode]['engine'] = {key: engine.statistics[key] for key in (
+                'frames_pushed', 'frames_with_depth', 'frames_without_geometry')}
     if args.json:
         print(json.dumps(figures))
         return
     print(f'engine {config.model.geometry}/{config.model.hand_branch} on {config.device}, '
+          f'hands {config.hands.source}, camera {config.camera_motion}, '
           f'{torch.get_num_threads()} torch threads, {args.frames} sample-bag frames per mode')
     for mode, values in figures.items():
         _print(mode, values)

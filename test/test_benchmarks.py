@@ -20,6 +20,20 @@ def test_throughput_refuses_fewer_than_three_frames() -> None:
     assert '--frames must be at least 3, got 2' in run.stderr
 
 
+def test_profile_times_every_stage_of_a_few_frames() -> None:
+    """benchmarks/profile_engine.py runs on 3 sample-bag frames and times the stages used."""
+    run = subprocess.run([sys.executable, str(BENCHMARKS / 'profile_engine.py'), '--frames', '3',
+                          '--modes', 'per_frame', '--json'],
+                         capture_output=True, text=True, timeout=600)
+    assert run.returncode == 0, run.stderr
+    figures = json.loads(run.stdout.strip().splitlines()[-1])
+    stages = figures['per_frame']['stages_ms_per_frame']
+    for stage in ('decode (JPEG)', 'geometry branch/aggregator', 'depth head (on demand)',
+                  'engine bookkeeping/tracker', 'publishing (message building)'):
+        assert stages[stage] > 0, stage
+    assert figures['per_frame']['fps'] > 0
+
+
 def _error_sources():
     """Import benchmarks/eval_error_sources.py (a script, not a package module)."""
     spec = importlib.util.spec_from_file_location('eval_error_sources',

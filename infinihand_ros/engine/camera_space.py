@@ -2,13 +2,14 @@
 
 ``split_frames`` turns one ``CameraSpaceOutput`` into one ``CameraSpaceFrame`` per frame: the raw
 network pose (model units), the intrinsics used (source image), the detected hands in the camera
-frame (2D joints and boxes mapped back to source pixels), each hand's metric-to-model depth
-ratio for the scale estimate, for keyframes the model depth map at the source size, and what
-the camera tracker sees (the model-input grey image with its depth and intrinsics). No
-world frame and no metric scale here: those are the pose track's (``engine/pose_track.py``) and
-``engine/world_placement.py``'s.
+frame (2D joints and boxes mapped back to source pixels), the frame's model depth on demand
+(``FrameDepth``: the depth head runs only for the frames whose depth is used) and what the
+camera tracker sees (the model-input grey image with its depth and intrinsics). ``depth_ratios``
+gives the metric scale's samples of a frame's hands. No world frame and no metric scale here:
+those are the pose track's (``engine/pose_track.py``) and ``engine/world_placement.py``'s.
 """
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from infinihand_ros.core.datatypes import HandState
@@ -17,6 +18,7 @@ from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.engine.camera_tracker import TrackingView
 from infinihand_ros.engine.frame_input import FrameMapping
 from infinihand_ros.engine.metric_scale import hand_depth_ratios
+from infinihand_ros.model.geometry_model import GeometryModel
 from infinihand_ros.model.geometry_model import GeometryOutput
 from infinihand_ros.model.infinihand_model import CameraSpaceOutput
 import numpy as np
@@ -50,6 +52,32 @@ class PreparedFrame:
     detections: tuple = ()
 
 
+class FrameDepth:
+    """A frame's model-size depth, computed on first use and kept.
+
+    The depth head runs only where a depth is used: tracker references, metric-scale samples,
+    keyframes for BA.
+    """
+
+    def __init__(self, compute: Callable[[], torch.Tensor]) -> None:
+        """Hold ``compute``, which returns the (H, W) model depth (model units)."""
+        self._compute: Callable[[], torch.Tensor] | None = compute
+        self._depth: np.ndarray | None = None
+
+    @property
+    def computed(self) -> bool:
+        """Return whether the depth has been computed."""
+        return self._depth is not None
+
+    def model(self) -> np.ndarray:
+        """Return the (H, W) float32 depth at the model size, model units."""
+        if self._depth is None:
+            with torch.inference_mode():
+                self._depth = self._compute().detach().float().cpu().numpy()
+            self._compute = None  # lets go of the block's tokens
+        return self._depth
+
+
 @dataclass(frozen=True)
 class CameraSpaceFrame:
     """One frame's camera-space estimate, before scale, BA and world placement.
@@ -59,9 +87,8 @@ class CameraSpaceFrame:
         T_raw: (4, 4) camera-to-world pose, model units.
         intrinsics: the intrinsics used, for the source image.
         hands: detected hands (camera frame, metres; pixels of the source image).
-        depth_ratios: (N,) per hand, metric joint depth / model depth (median over joints).
-        depth_model: (H, W) float32 model-unit depth at the source size for keyframes, else
-            None (pixels a crop cut away are NaN).
+        depth: the frame's model depth on demand, or None when the geometry branch did not run
+            on the frame (a fixed camera with hands found outside the model).
         view: what the camera tracker needs (model-input grey image, depth, intrinsics),
             without hand boxes yet; None when no tracker runs.
 
@@ -71,20 +98,21 @@ class CameraSpaceFrame:
     T_raw: np.ndarray
     intrinsics: Intrinsics
     hands: tuple[HandState, ...]
-    depth_ratios: np.ndarray
-    depth_model: np.ndarray | None
+    depth: FrameDepth | None
     view: TrackingView | None
 
 
-def tracking_view(frame: PreparedFrame, depth: torch.Tensor, intrinsics_model: np.ndarray
-                  ) -> TrackingView:
-    """Return the tracker's view of a frame: grey model input, (H, W) depth, (3, 3) K."""
-    height, width = depth.shape[-2:]
+def tracking_view(frame: PreparedFrame, depth: FrameDepth, intrinsics_model: np.ndarray,
+                  size: tuple[int, int]) -> TrackingView:
+    """Return the tracker's view of a frame: grey model input, depth on demand, (3, 3) K.
+
+    ``size`` is the model input's (height, width).
+    """
+    height, width = size
     weights = torch.tensor([0.299, 0.587, 0.114], dtype=frame.pixels.dtype,
                            device=frame.pixels.device)
     gray = torch.tensordot(weights, frame.pixels, dims=1).mul(255.0).round().clamp(0, 255)
-    return TrackingView(gray.to(torch.uint8).cpu().numpy(),
-                        depth.detach().float().cpu().numpy(),
+    return TrackingView(gray.to(torch.uint8).cpu().numpy(), depth.model,
                         Intrinsics.from_matrix(intrinsics_model, width, height),
                         frame.mapping.content_box, np.zeros((0, 4)))
 
@@ -93,14 +121,27 @@ def _numpy(tensor: torch.Tensor) -> np.ndarray:
     return tensor.detach().double().cpu().numpy()
 
 
-def split_frames(output: CameraSpaceOutput, frames: list[PreparedFrame], views: bool = True
-                 ) -> list[CameraSpaceFrame]:
-    """Return one record per frame of a B=1 block, in order (``views``: with tracker views)."""
+def _depths(model: GeometryModel | None, geometry: GeometryOutput, count: int
+            ) -> list[FrameDepth]:
+    """Return each frame's depth on demand: from the block's depth or its kept tokens.
+
+    ``model`` computes it from the tokens when the block skipped the depth head.
+    """
+    if geometry.depth is not None:
+        return [FrameDepth(lambda row=row: geometry.depth[0, row]) for row in range(count)]
+    return [FrameDepth(lambda row=row: model.frame_depth(geometry.dense_input, row))
+            for row in range(count)]
+
+
+def split_frames(output: CameraSpaceOutput, frames: list[PreparedFrame],
+                 model: GeometryModel | None, views: bool = True) -> list[CameraSpaceFrame]:
+    """Return one record per frame of a B=1 block, in order (``views``: with tracker views).
+
+    ``model`` is the geometry branch that computes depth on demand (None when the block's
+    outputs hold the depth).
+    """
     hands = output.hands
     frame_of_hand = output.boxes.batch_index.cpu().numpy()
-    ratios = _numpy(hand_depth_ratios(output.geometry.depth.flatten(0, 1),
-                                      output.boxes.batch_index, hands.joints_2d,
-                                      hands.joints_cam[..., 2]))
     columns = {name: _numpy(value) for name, value in (
         ('orient', hands.mano_cam.global_orient), ('pose', hands.mano_cam.hand_pose),
         ('betas', hands.mano_cam.betas), ('transl', hands.mano_cam.transl),
@@ -109,7 +150,8 @@ def split_frames(output: CameraSpaceOutput, frames: list[PreparedFrame], views: 
     sides = output.boxes.sides.cpu().numpy()
     poses = _numpy(output.T_world_cam[0])
     intrinsics = _numpy(output.intrinsics[0])
-    height, width = output.geometry.depth.shape[-2:]
+    size = tuple(frames[0].pixels.shape[-2:])  # model input (height, width)
+    depths = _depths(model, output.geometry, len(frames))
     records = []
     for row, frame in enumerate(frames):
         mapping = frame.mapping
@@ -123,50 +165,44 @@ def split_frames(output: CameraSpaceOutput, frames: list[PreparedFrame], views: 
             box_xyxy=mapping.points_to_source(columns['boxes'][r].reshape(2, 2)).reshape(4),
             confidence=float(np.clip(columns['presence'][r], 0.0, 1.0))) for r in rows)
         used = frame.intrinsics or mapping.intrinsics_to_source(
-            Intrinsics.from_matrix(intrinsics[row], width, height))
-        depth = None
-        if frame.keyframe:
-            depth = mapping.map_to_source(
-                output.geometry.depth[0, row].detach().float().cpu().numpy())
-        view = (tracking_view(frame, output.geometry.depth[0, row], intrinsics[row]) if views
-                else None)
-        records.append(CameraSpaceFrame(frame, poses[row], used, states, ratios[rows], depth,
-                                        view))
+            Intrinsics.from_matrix(intrinsics[row], size[1], size[0]))
+        view = tracking_view(frame, depths[row], intrinsics[row], size) if views else None
+        records.append(CameraSpaceFrame(frame, poses[row], used, states, depths[row], view))
     return records
 
 
 def split_geometry(geometry: GeometryOutput, T_world_cam: torch.Tensor,
-                   intrinsics: torch.Tensor, frames: list[PreparedFrame], views: bool = True
-                   ) -> list[CameraSpaceFrame]:
+                   intrinsics: torch.Tensor, frames: list[PreparedFrame],
+                   model: GeometryModel | None, views: bool = True) -> list[CameraSpaceFrame]:
     """Return one hand-less record per frame of a B=1 block (a source outside the model).
 
-    As ``split_frames`` without the hand branch: the raw pose, the intrinsics used and, for
-    keyframes, the model depth at the source size.
+    As ``split_frames`` without the hand branch: the raw pose, the intrinsics used and the
+    depth on demand.
     """
     poses = _numpy(T_world_cam[0])
     matrices = _numpy(intrinsics[0])
-    height, width = geometry.depth.shape[-2:]
+    size = tuple(frames[0].pixels.shape[-2:])  # model input (height, width)
+    depths = _depths(model, geometry, len(frames))
     records = []
     for row, frame in enumerate(frames):
         used = frame.intrinsics or frame.mapping.intrinsics_to_source(
-            Intrinsics.from_matrix(matrices[row], width, height))
-        depth = None
-        if frame.keyframe:
-            depth = frame.mapping.map_to_source(geometry.depth[0, row].detach().float().cpu()
-                                                .numpy())
-        view = tracking_view(frame, geometry.depth[0, row], matrices[row]) if views else None
-        records.append(CameraSpaceFrame(frame, poses[row], used, (), np.zeros(0), depth, view))
+            Intrinsics.from_matrix(matrices[row], size[1], size[0]))
+        view = tracking_view(frame, depths[row], matrices[row], size) if views else None
+        records.append(CameraSpaceFrame(frame, poses[row], used, (), depths[row], view))
     return records
 
 
-def source_depth_ratios(geometry: GeometryOutput, row: int, frame: PreparedFrame,
-                        hands: tuple[HandState, ...]) -> np.ndarray:
-    """Return (N,) metric-to-model depth ratios of hands found outside the model (scale)."""
+def depth_ratios(depth: np.ndarray, frame: PreparedFrame, hands: tuple[HandState, ...]
+                 ) -> np.ndarray:
+    """Return (N,) metric-to-model depth ratios of a frame's hands (the metric scale's samples).
+
+    ``depth`` is the frame's (H, W) model depth at the model size.
+    """
     if not hands:
         return np.zeros(0)
     joints_2d = np.stack([frame.mapping.points_to_model(hand.joints_2d) for hand in hands])
     depths = np.stack([hand.joints_cam[:, 2] for hand in hands])
-    depth = geometry.depth[0, row:row + 1].detach().double()
-    return _numpy(hand_depth_ratios(depth, torch.zeros(len(hands), dtype=torch.long),
+    return _numpy(hand_depth_ratios(torch.as_tensor(depth, dtype=torch.float64)[None],
+                                    torch.zeros(len(hands), dtype=torch.long),
                                     torch.as_tensor(joints_2d, dtype=torch.float64),
                                     torch.as_tensor(depths, dtype=torch.float64)))

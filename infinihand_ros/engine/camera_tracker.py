@@ -19,6 +19,7 @@ in the network's model units, so the metric scale and BA corrections apply on to
 """
 
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 import time
 from typing import Final
@@ -107,7 +108,8 @@ class TrackingView:
 
     Attributes:
         gray: (H, W) uint8 grey model-input image.
-        depth: (H, W) float32 network depth, model units.
+        depth: returns the (H, W) float32 network depth, model units; called only for a new
+            reference frame (the engine runs the depth head there, not on every frame).
         intrinsics: the model-input intrinsics the network used.
         content_box: (x0, y0, x1, y1) pixels holding image content (the rest is padding).
         hand_boxes: (N, 4) hand boxes (x0, y0, x1, y1), pixels.
@@ -115,7 +117,7 @@ class TrackingView:
     """
 
     gray: np.ndarray
-    depth: np.ndarray
+    depth: Callable[[], np.ndarray]
     intrinsics: Intrinsics
     content_box: tuple[int, int, int, int]
     hand_boxes: np.ndarray
@@ -286,11 +288,12 @@ class CameraTracker:
             mask[by0:min(by1, height), bx0:min(bx1, width)] = 0
         corners = cv2.goodFeaturesToTrack(view.gray, config.max_corners, config.corner_quality,
                                           config.min_corner_distance_px, mask=mask)
-        pixels = (np.zeros((0, 2), np.float32) if corners is None
-                  else corners.reshape(-1, 2).astype(np.float32))
+        if corners is None:
+            return np.zeros((0, 3), np.float32), np.zeros((0, 2), np.float32)
+        pixels = corners.reshape(-1, 2).astype(np.float32)
         rows = np.clip(np.round(pixels[:, 1]).astype(int), 0, height - 1)
         cols = np.clip(np.round(pixels[:, 0]).astype(int), 0, width - 1)
-        depth = view.depth[rows, cols].astype(np.float64)
+        depth = view.depth()[rows, cols].astype(np.float64)
         good = np.isfinite(depth) & (depth > 0)
         pixels, depth = pixels[good], depth[good]
         intrinsics = view.intrinsics

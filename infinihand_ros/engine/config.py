@@ -153,6 +153,13 @@ class EngineConfig:
             the world frame, hands are placed with the identity pose, no BA).
         output: the output stage (hand identity, shared shape, smoothing).
         hands: where the hands come from (the paper's hand branch or MediaPipe) and which count.
+        depth_maps: give every keyframe's metric depth map in ``FrameResult.depth`` (the depth
+            head then runs on every keyframe); False: only keyframes sent to BA carry one, and
+            the depth head runs only where a depth is used.
+        static_intrinsics_frames: with ``camera_motion: static`` and hands found outside the
+            model, frames without given intrinsics take the median of the intrinsics the model
+            predicted on the stream's first this-many frames, and the geometry branch runs on
+            those frames only (it has nothing else to give a fixed camera); 0: on every frame.
 
     """
 
@@ -170,6 +177,8 @@ class EngineConfig:
     camera_motion: str = 'estimate'
     output: OutputConfig = field(default_factory=OutputConfig)
     hands: HandsConfig = field(default_factory=HandsConfig)
+    depth_maps: bool = False
+    static_intrinsics_frames: int = 16
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -182,6 +191,7 @@ class EngineConfig:
                               f'got {self.camera_motion!r}')
         require_at_least('engine', 1, window=self.window,
                          keyframe_interval=self.keyframe_interval)
+        require_at_least('engine', 0, static_intrinsics_frames=self.static_intrinsics_frames)
         check_device(self.device)
 
 

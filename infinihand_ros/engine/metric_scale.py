@@ -40,11 +40,15 @@ class MetricScaleConfig:
     initial: float = 1.0
     min_ratio: float = 1e-3
     max_ratio: float = 1e3
+    sample_interval: int = 5
 
     def __post_init__(self) -> None:
         if self.history < 1 or not 1 <= self.min_samples <= self.history:
             raise ConfigError(f'metric_scale: need history >= min_samples >= 1, got '
                               f'{self.history} and {self.min_samples}')
+        if self.sample_interval < 1:
+            raise ConfigError(f'metric_scale.sample_interval must be >= 1 frame, got '
+                              f'{self.sample_interval}')
         if not 0 < self.min_ratio < self.initial < self.max_ratio:
             raise ConfigError(f'metric_scale: need 0 < min_ratio < initial < max_ratio, got '
                               f'{self.min_ratio}, {self.initial}, {self.max_ratio}')

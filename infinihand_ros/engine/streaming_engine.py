@@ -8,7 +8,11 @@ network's pose as prior; metric scale from the hands; BA corrections), to the
 bundle-adjustment backend (keyframes; ``engine/ba_backend.py``), its hands are placed in the
 world once, with the track's best pose (the identity with ``camera_motion: static``), and the
 output stage (``engine/output/``: identity, shared shape, smoothing) gives the result every
-consumer gets.
+consumer gets. The depth head runs only on the frames whose depth is used (a new tracker
+reference, a metric-scale sample, a keyframe for BA; every keyframe with ``depth_maps``). A fixed
+camera whose hands come from outside the model (``camera_motion: static`` with MediaPipe) skips
+the geometry branch wherever the intrinsics are known (given, or fixed from the first frames'
+predictions): the hand source is all such a frame needs.
 
 The first ``anchor_frames`` frames are held back and processed together (the paper's anchor
 context), in both modes. After that, per-frame mode runs each frame as it arrives; windowed mode
@@ -43,8 +47,8 @@ from infinihand_ros.engine.ba_backend import BABackend
 from infinihand_ros.engine.ba_backend import keyframe_input
 from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.camera_space import CameraSpaceFrame
+from infinihand_ros.engine.camera_space import depth_ratios
 from infinihand_ros.engine.camera_space import PreparedFrame
-from infinihand_ros.engine.camera_space import source_depth_ratios
 from infinihand_ros.engine.camera_space import split_frames
 from infinihand_ros.engine.camera_space import split_geometry
 from infinihand_ros.engine.config import EngineConfig
@@ -123,6 +127,9 @@ class StreamingEngine:
         self._last_stamp: int | None = None
         self._accepted_stamp: int | None = None  # last stamp of a block the model accepted
         self._source_size: tuple[int, int] | None = None  # (width, height) of the stream
+        self._predicted: list[Intrinsics] = []  # a fixed camera's first predicted intrinsics
+        self._fixed_intrinsics: Intrinsics | None = None  # ... and their median, once known
+        self._counts = {'frames_with_depth': 0, 'frames_without_geometry': 0}
         ba = self.config.bundle_adjustment
         blend_s = (self.config.pose_track.correction_blend_s if ba is None
                    else ba.corrections.blend_s)
@@ -132,9 +139,13 @@ class StreamingEngine:
 
     @property
     def statistics(self) -> dict[str, object]:
-        """Return frames pushed, windows decoding, scale, pose version, tracker and BA figures."""
+        """Return frames pushed, windows decoding, scale, pose version, tracker and BA figures.
+
+        ``frames_with_depth`` counts the frames whose depth the depth head computed,
+        ``frames_without_geometry`` those a fixed camera passed without the geometry branch.
+        """
         estimate = self.pose_track.scale_estimate()
-        return {'frames_pushed': self._frames_pushed,
+        return {'frames_pushed': self._frames_pushed, **self._counts,
                 'windows_in_flight': sum(not future.done() for future in self._decoding),
                 'metric_scale': self.pose_track.scale,
                 'metric_scale_estimate': estimate.scale,
@@ -165,11 +176,15 @@ class StreamingEngine:
         """
         with self._exclusive():
             frame = self._prepare(image, timestamp_ns, intrinsics)
-            self._pending.append(frame)
             self._frames_pushed += 1
             self._last_stamp = frame.timestamp_ns
-            if len(self._pending) >= self._block_size():
-                self._run_block()
+            known = self._intrinsics_without_geometry(frame)
+            if known is not None:
+                self._decoding.append(_done(self._without_geometry(frame, known)))
+            else:
+                self._pending.append(frame)
+                if len(self._pending) >= self._block_size():
+                    self._run_block()
             return self._collect(wait=False)
 
     def flush(self) -> list[FrameResult]:
@@ -302,6 +317,36 @@ class StreamingEngine:
         return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, source,
                              detections)
 
+    def _intrinsics_without_geometry(self, frame: PreparedFrame) -> Intrinsics | None:
+        """Return the intrinsics a frame goes on without the geometry branch, or None.
+
+        A fixed camera whose hands come from outside the model needs the geometry branch only
+        for intrinsics: none when they are given, or once the first frames' predictions fixed
+        them (``static_intrinsics_frames``). Frames never overtake held-back ones.
+        """
+        if not self.static or self._hand_source.uses_hand_branch or self._pending:
+            return None
+        return frame.intrinsics or self._fixed_intrinsics
+
+    def _without_geometry(self, frame: PreparedFrame, intrinsics: Intrinsics
+                          ) -> list[CameraSpaceFrame]:
+        """Return a fixed camera's frame record with its source's hands, no model run."""
+        self._counts['frames_without_geometry'] += 1
+        hands = self._hand_source.camera_hands(frame.detections, (), intrinsics)
+        return [CameraSpaceFrame(frame, np.eye(4), intrinsics, hands, None, None)]
+
+    def _fix_intrinsics(self, record: CameraSpaceFrame) -> None:
+        """Collect a fixed camera's predicted intrinsics; fix their median once enough came."""
+        wanted = self.config.static_intrinsics_frames
+        if (record.frame.intrinsics is not None or self._fixed_intrinsics is not None
+                or wanted == 0 or not self.static or self._hand_source.uses_hand_branch):
+            return
+        self._predicted.append(record.intrinsics)
+        if len(self._predicted) == wanted:
+            values = np.median([[k.fx, k.fy, k.cx, k.cy] for k in self._predicted], axis=0)
+            self._fixed_intrinsics = Intrinsics(*values, record.intrinsics.width,
+                                                record.intrinsics.height)
+
     def _block_size(self) -> int:
         """Return how many frames the next block needs."""
         first_pending = self._frames_pushed - len(self._pending)
@@ -319,15 +364,14 @@ class StreamingEngine:
                 geometry, poses, used = self.model.run_geometry(
                     images, self._stream, [frame.keyframe for frame in frames], intrinsics,
                     known, self._detection, self._cpu_bf16,
-                    masks=self._hand_source.uses_hand_branch)
+                    masks=self._hand_source.uses_hand_branch, depth=False)
         except ModelOutputError as exc:  # the block's frames were not added: forget them
             self._frames_pushed -= len(frames)
             self._last_stamp = self._accepted_stamp
             raise ModelOutputError(f'{self._checkpoint_name()}: {exc}') from exc
         self._accepted_stamp = frames[-1].timestamp_ns
         if self._decoder is None:
-            future: Future = Future()
-            future.set_result(self._hands(images, geometry, poses, used, frames))
+            future: Future = _done(self._hands(images, geometry, poses, used, frames))
         else:
             for in_flight in self._decoding:  # back-pressure: one window in the worker
                 in_flight.exception()  # waits; its results are collected below
@@ -338,28 +382,16 @@ class StreamingEngine:
                used: torch.Tensor, frames: list[PreparedFrame]) -> list[CameraSpaceFrame]:
         """Find a block's hands with the hand source; split it into per-frame records."""
         source = self._hand_source
+        branch = self.model.geometry
         with torch.inference_mode():
             if source.uses_hand_branch:
                 output: CameraSpaceOutput = self.model.run_hands(images, geometry, poses, used,
                                                                  None, self._detection)
-                records = split_frames(output, frames, self._tracking)
+                records = split_frames(output, frames, branch, self._tracking)
             else:
-                records = split_geometry(geometry, poses, used, frames, self._tracking)
-            return [self._source_hands(geometry, row, record)
-                    for row, record in enumerate(records)]
-
-    def _source_hands(self, geometry: GeometryOutput, row: int, record: CameraSpaceFrame
-                      ) -> CameraSpaceFrame:
-        """Return a record with the hands its hand source gives (and their depth ratios)."""
-        frame = record.frame
-        hands = self._hand_source.camera_hands(frame.detections, record.hands,
-                                               record.intrinsics)
-        if self._hand_source.uses_hand_branch:  # a subset of the branch's hands: their ratios
-            kept = [any(hand is branch for hand in hands) for branch in record.hands]
-            ratios = record.depth_ratios[np.array(kept, dtype=bool)]
-        else:
-            ratios = source_depth_ratios(geometry, row, frame, hands)
-        return dataclasses.replace(record, hands=hands, depth_ratios=ratios)
+                records = split_geometry(geometry, poses, used, frames, branch, self._tracking)
+        return [dataclasses.replace(record, hands=source.camera_hands(
+            record.frame.detections, record.hands, record.intrinsics)) for record in records]
 
     def _given_intrinsics(self, frames: list[PreparedFrame]
                           ) -> tuple[torch.Tensor | None, torch.Tensor | None]:
@@ -396,11 +428,19 @@ class StreamingEngine:
                      for hand in record.hands]
             view = dataclasses.replace(record.view, hand_boxes=np.array(boxes).reshape(-1, 4))
         track.add(frame.index, frame.timestamp_ns, record.T_raw, view)
-        track.observe_scale(record.depth_ratios, np.ones(len(record.depth_ratios)))
-        depth = None if record.depth_model is None else record.depth_model * track.scale
+        samples = self._scale_samples(record)
+        track.observe_scale(samples, np.ones(len(samples)))
+        self._fix_intrinsics(record)
+        to_ba = (self._ba is not None and frame.keyframe and frame.source_image is not None
+                 and record.depth is not None)
+        depth = None
+        if record.depth is not None and frame.keyframe and (to_ba or self.config.depth_maps):
+            depth = frame.mapping.map_to_source(record.depth.model()) * track.scale
+        if record.depth is not None and record.depth.computed:
+            self._counts['frames_with_depth'] += 1
         if self._ba is not None:
             self._ba.fold_in(track)
-            if frame.keyframe and depth is not None and frame.source_image is not None:
+            if to_ba:
                 self._ba.offer(keyframe_input(frame.index, frame.timestamp_ns,
                                               frame.source_image, depth,
                                               track.scaled(frame.index), record.intrinsics,
@@ -410,6 +450,20 @@ class StreamingEngine:
             intrinsics=record.intrinsics, is_keyframe=frame.keyframe, depth=depth,
             hand_source=self._hand_source.name,
             **self._posed(record.hands, track.best(frame.index))))
+
+    def _scale_samples(self, record: CameraSpaceFrame) -> np.ndarray:
+        """Return the metric-scale samples of a frame's hands, on the frames that are sampled.
+
+        Every frame while the scale warms up; after that every ``sample_interval``-th frame
+        and any frame whose depth was computed anyway (a tracker reference).
+        """
+        depth, hands = record.depth, record.hands
+        interval = self.config.metric_scale.sample_interval
+        if depth is None or not hands or not (
+                depth.computed or self.pose_track.scale_state == 'warmup'
+                or record.frame.index % interval == 0):
+            return np.zeros(0)
+        return depth_ratios(depth.model(), record.frame, hands)
 
     def _on_final_trajectory(self, result: FrameResult) -> FrameResult:
         """Return ``result`` with the track's current (not live) pose, scale and hands.
@@ -439,3 +493,10 @@ class StreamingEngine:
         checkpoint = self.config.model.checkpoint
         return (f'checkpoint {checkpoint}' if checkpoint is not None
                 else f'seeded untrained weights (seed {self.config.model.seed})')
+
+
+def _done(records: list[CameraSpaceFrame]) -> Future:
+    """Return a finished future holding ``records`` (results queue in push order)."""
+    future: Future = Future()
+    future.set_result(records)
+    return future

@@ -4,7 +4,9 @@ Attribute names (``aggregator``, ``camera_head``, ``depth_head``) mirror LingBot
 checkpoint loads by identity; ``mask_head`` is ours (paper Sec. 3.2). The aggregator runs in
 bf16 autocast on CUDA (when configured) and, when a call asks for ``cpu_bf16``, on the CPU (for
 CPUs with native bf16, ``cpu_bf16_supported``); the heads run in float32. float32 everywhere on
-the CPU is the reference path (the default).
+the CPU is the reference path (the default). A call may skip the depth head
+(``depth=False``) and keep the aggregated tokens instead, so a caller computes depth only for
+the frames that need it (``frame_depth``); each frame's depth is the same either way.
 """
 
 from dataclasses import dataclass
@@ -47,30 +49,42 @@ def _dense(head: DPTHead, layers: tuple[torch.Tensor, ...], aggregated: Aggregat
 
 
 @dataclass(frozen=True)
+class DenseInput:
+    """What a dense head needs for a block's frames: the float32 tokens and the image size."""
+
+    tokens: AggregatorOutput
+    image_size: tuple[int, int]
+
+
+@dataclass(frozen=True)
 class GeometryOutput:
     """Per-frame outputs of one block of S frames.
 
     Attributes:
         pose_encoding: (B, S, 9) final camera encoding (see ``model/pose_encoding.py``).
         pose_encoding_iterations: the camera head's encodings of every refinement pass.
-        depth: (B, S, H, W) depth along the camera z axis, model units (no metric scale).
-        depth_conf: (B, S, H, W) confidence >= 1.
+        depth: (B, S, H, W) depth along the camera z axis, model units (no metric scale), or
+            None when the call skipped the depth head (``depth=False``; see ``dense_input``).
+        depth_conf: (B, S, H, W) confidence >= 1, or None with ``depth``.
         hand_masks: (B, S, 2, H, W) left/right hand probabilities in [0, 1], or None when
             the call skipped the mask head (``masks=False``: hands found outside the model).
         patch_features: (B, S, 2C, Hp, Wp) the last selected aggregator layer's patch tokens
             (frame and global outputs concatenated) on the patch grid; pixel (u, v) lies in
             cell (v // patch_size, u // patch_size). This is what the hand branch crops.
         patch_size: pixels per patch side.
+        dense_input: the tokens ``GeometryModel.frame_depth`` computes a frame's depth from,
+            when the call skipped the depth head; else None.
 
     """
 
     pose_encoding: torch.Tensor
     pose_encoding_iterations: tuple[torch.Tensor, ...]
-    depth: torch.Tensor
-    depth_conf: torch.Tensor
+    depth: torch.Tensor | None
+    depth_conf: torch.Tensor | None
     hand_masks: torch.Tensor | None
     patch_features: torch.Tensor
     patch_size: int
+    dense_input: DenseInput | None = None
 
 
 class GeometryModel(nn.Module):
@@ -98,7 +112,7 @@ class GeometryModel(nn.Module):
 
     def forward(self, images: torch.Tensor, plan: BlockPlan, aggregator_memory: KVMemory,
                 camera_memory: KVMemory, cpu_bf16: bool = False,
-                masks: bool = True) -> GeometryOutput:
+                masks: bool = True, depth: bool = True) -> GeometryOutput:
         """Run one block of frames.
 
         Args:
@@ -111,6 +125,8 @@ class GeometryModel(nn.Module):
                 where ``cpu_bf16_supported()`` (elsewhere bf16 is emulated, slowly).
             masks: run the mask head; False skips it (``hand_masks`` is None), for callers
                 whose hands come from elsewhere.
+            depth: run the depth head; False skips it (``depth`` is None) and keeps the tokens
+                in ``dense_input`` for ``frame_depth``.
 
         """
         autocast = self.config.autocast_bf16 and (
@@ -121,11 +137,22 @@ class GeometryModel(nn.Module):
             layers = tuple(layer.float() for layer in aggregated.layers)
             encodings = self.camera_head(layers[-1], plan, camera_memory)
             image_size = tuple(images.shape[-2:])
-            depth, depth_conf = activate_depth(
-                _dense(self.depth_head, layers, aggregated, image_size))
+            depth_map, depth_conf = (activate_depth(
+                _dense(self.depth_head, layers, aggregated, image_size)) if depth
+                else (None, None))
             hand_masks = (activate_masks(_dense(self.mask_head, layers, aggregated, image_size))
                           if masks else None)
         patches = layers[-1][:, :, aggregated.patch_start:]
         features = patches.transpose(2, 3).unflatten(-1, aggregated.grid)
-        return GeometryOutput(encodings[-1], tuple(encodings), depth, depth_conf, hand_masks,
-                              features, self.config.aggregator.patch_size)
+        dense_input = None if depth else DenseInput(
+            AggregatorOutput(layers, aggregated.patch_start, aggregated.grid), image_size)
+        return GeometryOutput(encodings[-1], tuple(encodings), depth_map, depth_conf, hand_masks,
+                              features, self.config.aggregator.patch_size, dense_input)
+
+    def frame_depth(self, dense: DenseInput, frame: int, batch: int = 0) -> torch.Tensor:
+        """Return one frame's (H, W) depth (model units) from a call's skipped-head tokens."""
+        layers = tuple(layer[batch:batch + 1, frame:frame + 1] for layer in dense.tokens.layers)
+        with torch.autocast(layers[0].device.type, enabled=False):
+            depth, _ = activate_depth(self.depth_head(layers, dense.tokens.patch_start,
+                                                      dense.tokens.grid, dense.image_size))
+        return depth[0, 0]

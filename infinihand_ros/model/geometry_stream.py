@@ -15,6 +15,8 @@ from dataclasses import fields
 
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
+from infinihand_ros.model.aggregator import AggregatorOutput
+from infinihand_ros.model.geometry_model import DenseInput
 from infinihand_ros.model.geometry_model import GeometryModel
 from infinihand_ros.model.geometry_model import GeometryOutput
 from infinihand_ros.model.streaming_memory import FrameSchedule
@@ -33,6 +35,10 @@ def _concat_outputs(first: GeometryOutput, second: GeometryOutput) -> GeometryOu
             values[item.name] = torch.cat((a, b), dim=1)
         elif isinstance(a, tuple):
             values[item.name] = tuple(torch.cat(pair, dim=1) for pair in zip(a, b))
+        elif isinstance(a, DenseInput):
+            tokens = AggregatorOutput(tuple(torch.cat(pair, dim=1) for pair in zip(
+                a.tokens.layers, b.tokens.layers)), a.tokens.patch_start, a.tokens.grid)
+            values[item.name] = DenseInput(tokens, a.image_size)
         else:
             values[item.name] = a
     return GeometryOutput(**values)
@@ -69,7 +75,7 @@ class GeometryStream:
         return self.aggregator_memory, self.camera_memory
 
     def step(self, images: torch.Tensor, keyframe: bool | Sequence[bool] = True,
-             cpu_bf16: bool = False, masks: bool = True) -> GeometryOutput:
+             cpu_bf16: bool = False, masks: bool = True, depth: bool = True) -> GeometryOutput:
         """Process one or more frames and return their outputs.
 
         Args:
@@ -78,6 +84,8 @@ class GeometryStream:
             keyframe: one flag for all S frames, or one per frame.
             cpu_bf16: bf16 aggregator on the CPU (``GeometryModel.forward``); False: float32.
             masks: run the mask head (False: ``hand_masks`` is None).
+            depth: run the depth head (False: ``depth`` is None; ``GeometryModel.frame_depth``
+                computes a frame's depth from ``dense_input`` later).
 
         Raises:
             InputError: for a wrong shape or dtype, or a flag list of the wrong length.
@@ -86,13 +94,13 @@ class GeometryStream:
         flags = self._check(images, keyframe)
         remaining = self.schedule.anchors_remaining
         if 0 < remaining < len(flags):
-            head = self.step(images[:, :remaining], flags[:remaining], cpu_bf16, masks)
+            head = self.step(images[:, :remaining], flags[:remaining], cpu_bf16, masks, depth)
             return _concat_outputs(head, self.step(images[:, remaining:], flags[remaining:],
-                                                   cpu_bf16, masks))
+                                                   cpu_bf16, masks, depth))
         plan = self.schedule.plan(flags)
         try:
             output = self.model(images, plan, self.aggregator_memory, self.camera_memory,
-                                cpu_bf16, masks)
+                                cpu_bf16, masks, depth)
             _check_finite(output)
         except BaseException:
             for memory in self.memories:

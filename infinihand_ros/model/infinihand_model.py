@@ -156,16 +156,17 @@ class InfiniHandModel(nn.Module):
                      keyframe: bool | list[bool] = True, intrinsics: torch.Tensor | None = None,
                      intrinsics_known: torch.Tensor | None = None,
                      detection: HandDetection | None = None, cpu_bf16: bool = False,
-                     masks: bool = True
+                     masks: bool = True, depth: bool = True
                      ) -> tuple[GeometryOutput, torch.Tensor, torch.Tensor]:
         """Return the geometry outputs, camera-to-world poses and the intrinsics for the hands.
 
         ``cpu_bf16`` runs the aggregator in bf16 on the CPU (``GeometryModel.forward``); the
         default is the float32 reference path. ``masks=False`` skips the mask head (for hands
-        found outside the model; ``run_hands`` then needs given boxes).
+        found outside the model; ``run_hands`` then needs given boxes). ``depth=False`` skips the
+        depth head (``GeometryModel.frame_depth`` gives a frame's depth on demand).
         """
         detection = detection or self.hand_detection()
-        geometry = stream.step(images, keyframe, cpu_bf16, masks)
+        geometry = stream.step(images, keyframe, cpu_bf16, masks, depth)
         height, width = images.shape[-2:]
         encoding = geometry.pose_encoding.double()
         encoding = torch.cat((encoding[..., :FOV_H],  # out of place: training backprops here

@@ -7,6 +7,7 @@ scale is recovered and the hands land on the ground truth's world joints.
 
 from types import SimpleNamespace
 
+from infinihand_ros.engine.camera_space import depth_ratios
 from infinihand_ros.engine.camera_space import PreparedFrame
 from infinihand_ros.engine.camera_space import split_frames
 from infinihand_ros.engine.frame_input import letterbox
@@ -75,11 +76,12 @@ def test_known_scale_and_world_hands_are_recovered() -> None:
         prepared.append(PreparedFrame(frame.index, frame.timestamp_ns,
                                       torch.from_numpy(pixels).permute(2, 0, 1).float() / 255,
                                       mapping, frame.intrinsics, keyframe=True))
-    records = split_frames(_perfect_output(frames, mappings), prepared)
+    records = split_frames(_perfect_output(frames, mappings), prepared, model=None)
     track = PoseTrack(PoseTrackConfig(), MetricScaleConfig(min_samples=3))
     for record in records:
         track.add(record.frame.index, record.frame.timestamp_ns, record.T_raw)
-        track.observe_scale(record.depth_ratios, np.ones(len(record.depth_ratios)))
+        ratios = depth_ratios(record.depth.model(), record.frame, record.hands)
+        track.observe_scale(ratios, np.ones(len(ratios)))
     assert track.scale == pytest.approx(TRUE_SCALE, rel=SCALE_TOLERANCE)
     truth = frames[-1].camera_pose.translation
     np.testing.assert_allclose(track.best(11).camera_pose.translation, truth,
@@ -88,7 +90,7 @@ def test_known_scale_and_world_hands_are_recovered() -> None:
     for record, frame in zip(records, frames):
         pose = track.best(record.frame.index).camera_pose
         assert record.intrinsics == frame.intrinsics
-        assert record.depth_model.shape == (168, 224)
+        assert record.depth.model().shape == (168, 224)
         for hand in place_in_world(record.hands, pose):
             ground_truth = frame.hands[hand.side]
             np.testing.assert_allclose(hand.joints_world,

@@ -49,7 +49,7 @@ def render(source: np.ndarray, T_world_cam: np.ndarray) -> tuple[np.ndarray, np.
 
 
 def view(gray: np.ndarray, depth: np.ndarray, boxes: np.ndarray | None = None) -> TrackingView:
-    return TrackingView(gray, depth, K, (0, 0, WIDTH, HEIGHT),
+    return TrackingView(gray, lambda: depth, K, (0, 0, WIDTH, HEIGHT),
                         np.zeros((0, 4)) if boxes is None else boxes)
 
 

@@ -13,7 +13,7 @@ FRAMES = 30
 @pytest.mark.slow
 def test_one_result_per_bag_frame_with_the_right_shapes() -> None:
     frames = list(read_camera_frames(sample_bag_path(), max_frames=FRAMES))
-    with StreamingEngine(EngineConfig(mode='windowed', window=8)) as engine:
+    with StreamingEngine(EngineConfig(mode='windowed', window=8, depth_maps=True)) as engine:
         results = []
         for frame in frames:
             results += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)

@@ -95,14 +95,21 @@ def crop_video(stills: list) -> tuple:
     return found[0].side, crop_stream(frame.rgb, frame.intrinsics, centres, widths)
 
 
-def _run(frames: list, **engine_settings: object) -> list:
+def _stream(frames: list, intrinsics: bool = True, **engine_settings: object
+            ) -> tuple[list, dict]:
+    """Return the results of ``frames`` with MediaPipe hands, and the engine's statistics."""
     config = replace(load_engine_config(), hands=HandsConfig(source='mediapipe'),
                      **engine_settings)
     with StreamingEngine(config) as engine:
         results = []
         for frame in frames:
-            results += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
-        return results + engine.flush()
+            results += engine.push(frame.rgb, frame.timestamp_ns,
+                                   frame.intrinsics if intrinsics else None)
+        return results + engine.flush(), engine.statistics
+
+
+def _run(frames: list, **engine_settings: object) -> list:
+    return _stream(frames, **engine_settings)[0]
 
 
 @pytest.mark.slow
@@ -127,6 +134,36 @@ def test_a_crop_video_keeps_the_hand_in_place_with_one_identity(crop_video: tupl
     assert np.median(depth_error) <= 0.1 and depth_error.max() <= 0.4, depth_error
     sideways = wrists[:, :2] / wrists[:, 2:] * centre[2]  # lateral position at the median depth
     assert np.abs(sideways - centre[:2]).max() <= 0.03, sideways
+
+
+@pytest.mark.slow
+def test_a_fixed_camera_with_mediapipe_hands_runs_no_geometry_where_intrinsics_are_known(
+        crop_video: tuple) -> None:
+    """camera_motion static + MediaPipe: the geometry branch only predicts missing intrinsics.
+
+    Given intrinsics: no frame runs it, and the hands are a moving-camera run's (camera
+    frame). Without: the first ``static_intrinsics_frames`` frames predict them and their
+    median holds for the rest.
+    """
+    _, frames = crop_video
+    moving = _run(frames)
+    fixed, statistics = _stream(frames, camera_motion='static')
+    assert statistics['frames_without_geometry'] == len(frames)
+    assert statistics['frames_with_depth'] == 0
+    for one, other in zip(moving, fixed, strict=True):
+        assert other.intrinsics == one.intrinsics
+        for hand, same in zip(one.hands, other.hands, strict=True):
+            np.testing.assert_array_equal(same.joints_cam, hand.joints_cam)
+            np.testing.assert_array_equal(same.joints_world, same.joints_cam)
+    warmup = 4
+    predicted, statistics = _stream(frames, intrinsics=False, camera_motion='static',
+                                    static_intrinsics_frames=warmup)
+    assert statistics['frames_without_geometry'] == len(frames) - warmup
+    median = np.median([[k.fx, k.fy, k.cx, k.cy] for k in
+                        (result.intrinsics for result in predicted[:warmup])], axis=0)
+    for result in predicted[warmup:]:
+        k = result.intrinsics
+        np.testing.assert_allclose([k.fx, k.fy, k.cx, k.cy], median, rtol=1e-12)
 
 
 def test_tracking_restarts_at_each_scene_cut_only(stills: list, crop_video: tuple) -> None:

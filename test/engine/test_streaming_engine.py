@@ -58,11 +58,34 @@ def test_one_result_per_frame_in_order(model, frames: list) -> None:
     for result, frame in zip(results, frames):
         assert result.intrinsics == frame.intrinsics
         assert np.all(np.isfinite(result.camera_pose.matrix()))
-        assert (result.depth.shape == (240, 320)) if result.is_keyframe else result.depth is None
+        assert result.depth is None  # only keyframes sent to BA carry one (or depth_maps)
         for hand in result.hands:
             np.testing.assert_allclose(hand.joints_world,
                                        result.camera_pose.to_world(hand.joints_cam), atol=1e-9)
             assert 0.5 < hand.confidence <= 1.0
+
+
+def test_the_depth_head_runs_only_where_a_depth_is_used(model, frames: list) -> None:
+    """Depth on demand gives the poses and hands of a run with every keyframe's depth map.
+
+    The scale warms up on the first frame's hands; then every 5th frame is a scale sample.
+    """
+    config = replace(CONFIG, metric_scale=replace(CONFIG.metric_scale, min_samples=1))
+    with StreamingEngine(replace(config, depth_maps=True), model) as engine:
+        full = _run(engine, frames)
+        full_count = engine.statistics['frames_with_depth']
+    with StreamingEngine(config, model) as engine:
+        lazy = _run(engine, frames)
+        lazy_count = engine.statistics['frames_with_depth']
+    keyframes = [result.frame_index for result in full if result.is_keyframe]
+    assert [r.frame_index for r in full if r.depth is not None] == keyframes
+    assert all(result.depth is None for result in lazy)
+    assert full_count >= len(keyframes) > lazy_count >= 1  # the tracker's first reference
+    for one, other in zip(full, lazy):
+        np.testing.assert_array_equal(one.camera_pose.matrix(), other.camera_pose.matrix())
+        assert one.metric_scale == other.metric_scale
+        for hand, same in zip(one.hands, other.hands, strict=True):
+            np.testing.assert_array_equal(hand.joints_world, same.joints_world)
 
 
 def test_windowed_mode_gives_the_per_frame_results(model, frames: list) -> None:

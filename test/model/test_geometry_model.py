@@ -87,6 +87,20 @@ def test_patch_features_are_last_selected_layer(micro_model: GeometryModel, rng)
     torch.testing.assert_close(output.patch_features[0, 1, :, 2, 3], tokens[2 * 5 + 3])
 
 
+def test_depth_on_demand_equals_the_depth_head_run_with_the_block(micro_model: GeometryModel,
+                                                                  rng) -> None:
+    """A block run without the depth head gives each frame's depth later, the same values."""
+    images = torch.from_numpy(rng.random((1, 3, 3, 56, 70), dtype='float32'))
+    with torch.no_grad():
+        full = GeometryStream(micro_model).step(images)
+        lazy = GeometryStream(micro_model).step(images, depth=False)
+        assert lazy.depth is None and lazy.depth_conf is None and full.dense_input is None
+        torch.testing.assert_close(lazy.pose_encoding, full.pose_encoding)
+        for frame in range(3):  # 2 anchors then 1 frame: two blocks' tokens joined
+            torch.testing.assert_close(micro_model.frame_depth(lazy.dense_input, frame),
+                                       full.depth[0, frame])
+
+
 @pytest.mark.skipif(not torch.cuda.is_available(), reason='needs a CUDA device')
 def test_cuda_bf16_stream_matches_shapes_and_is_finite(micro_model: GeometryModel) -> None:
     """On CUDA the aggregator runs in bf16 autocast and the heads give finite float32 outputs."""

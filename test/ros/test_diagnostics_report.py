@@ -92,6 +92,15 @@ def test_camera_tracking_counts_and_new_untracked_frames_warn() -> None:
     assert dict(diagnostic_report(RUNNING, ENGINE, 5.0).values)['tracker_ms_per_frame'] == 'nan'
 
 
+def test_model_work_skipped_is_counted() -> None:
+    """Frames that ran the depth head and frames a fixed camera passed without the geometry."""
+    engine = {**ENGINE, 'frames_with_depth': 12, 'frames_without_geometry': 80}
+    values = dict(diagnostic_report(RUNNING, engine, 5.0, RUNNING).values)
+    assert (values['frames_with_depth'], values['frames_without_geometry']) == ('12', '80')
+    values = dict(diagnostic_report(RUNNING, ENGINE, 5.0, RUNNING).values)
+    assert (values['frames_with_depth'], values['frames_without_geometry']) == ('0', '0')
+
+
 def test_stale_before_the_first_image() -> None:
     """No image received yet: STALE."""
     report = diagnostic_report(replace(RUNNING, received=0), ENGINE, 5.0)

@@ -106,7 +106,9 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
           for source in INTRINSICS_SOURCES),
         *((f'camera_{state}', snapshot.camera_tracking.get(state, 0))
           for state in TRACKING_STATES),
-        ('tracker_ms_per_frame', _tracker_ms(engine_statistics)))
+        ('tracker_ms_per_frame', _tracker_ms(engine_statistics)),
+        ('frames_with_depth', engine_statistics.get('frames_with_depth', 0)),
+        ('frames_without_geometry', engine_statistics.get('frames_without_geometry', 0)))
     text = tuple((key, _format(value)) for key, value in values)
     if snapshot.received == 0:
         return DiagnosticReport(STALE, 'waiting for images', text)
