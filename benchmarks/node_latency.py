@@ -20,8 +20,9 @@ Latency is measured as receive time minus the replay's publish time, on this mac
 monotonic clock: the time this process receives an output minus the time it received the image
 with the same stamp (shared-memory transport: the image arrives here within a fraction of a
 millisecond of its publication). No ``/clock`` is involved. Printed per run: output rate (Hz,
-outputs over the span from first to last output), latency p50/p95 (ms), and drops: images the
-node received but replaced before inference (``frames_dropped`` of its last /diagnostics), and
+outputs over the span from first to last output), latency p50/p95 (ms), the node's own
+processing time p50/p95 (image arrival to publication, from its /diagnostics), and drops: images
+the node received but replaced before inference (``frames_dropped`` of its last /diagnostics), and
 images of the segment that never reached the node (``not_received``). With the BA node, the
 BA results the estimator applied. Figures only; nothing is asserted.
 """
@@ -93,6 +94,8 @@ class RunFigures:
     output_rate_hz: float
     latency_p50_ms: float
     latency_p95_ms: float
+    processing_p50_ms: float
+    processing_p95_ms: float
     frames_received: int
     frames_dropped: int
     not_received: int
@@ -211,7 +214,9 @@ def figures(profile: str, rate_hz: float, ba: str, images: int, listener: Listen
     received = int(values.get('frames_received', 0))
     return RunFigures(profile, rate_hz, ba, images, len(times),
                       (len(times) - 1) / span_s if span_s else 0.0, float(p50), float(p95),
-                      received, int(values.get('frames_dropped', 0)), images - received,
+                      float(values.get('processing_p50_ms', 'nan')),
+                      float(values.get('processing_p95_ms', 'nan')), received,
+                      int(values.get('frames_dropped', 0)), images - received,
                       int(values.get('ba_results_applied', 0)))
 
 
@@ -319,7 +324,9 @@ def _print(result: RunFigures, alone: MediaPipeFigures, as_json: bool) -> None:
           f'{result.outputs}/{result.images} frames out '
           f'({100.0 * result.outputs / result.images:.0f} %) at {result.output_rate_hz:.1f} Hz '
           f'({rate_ratio:.2f}x MediaPipe alone), latency p50 {result.latency_p50_ms:.0f} ms '
-          f'p95 {result.latency_p95_ms:.0f} ms ({latency_ratio:.1f}x MediaPipe p95), dropped '
+          f'p95 {result.latency_p95_ms:.0f} ms ({latency_ratio:.1f}x MediaPipe p95; node '
+          f'processing p50 {result.processing_p50_ms:.0f} p95 {result.processing_p95_ms:.0f} '
+          f'ms), dropped '
           f'{result.frames_dropped}, not received {result.not_received}, BA results '
           f'{result.ba_results_applied}', flush=True)
 

@@ -7,13 +7,15 @@
 Streams the sample bag's frames (``data/sample_bag``, cycled to ``--frames``) through the
 engine in each mode and times every stage with wall-clock timers wrapped around it: JPEG decode
 (the node's ``compressed_msg_to_image`` on the frames re-encoded at quality 90), preparing the
-frame (check, letterbox, to a tensor; the hand source's detection when it reads the image), the
+frame (check, letterbox, to a tensor), the hand source's detection when it reads the image (in
+the engine's detection thread, beside the model, so not part of the main thread's time), the
 geometry branch (aggregator with its frame and global attention blocks and the global blocks'
 memory attention, camera head, mask head), the hands (the hand branch with detection from the
 masks, the split into per-frame records, the hand source's lifting and gating), engine
 bookkeeping (the pose track with its tracker, world placement, the output stage), the depth
 head (run on demand inside the bookkeeping, so its time is part of that stage's too) and the
-node's message building (``OutputPublishers.publish`` with publishers that send nothing).
+node's publishing (``OutputPublishers.publish`` with the node's output switches, its messages
+built and serialised as rclpy's publishers do, nothing sent).
 Nested stages are indented under their parent. Per stage it prints milliseconds per frame
 (total time / frames) and the calls; the main thread's wall time per frame is printed beside
 it, with how many frames ran the depth head and how many skipped the geometry branch (a fixed
@@ -39,6 +41,7 @@ import cv2
 from infinihand_ros.bag.camera_msgs import compressed_msg_to_image
 from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.core.output_fields import PoseFields
+from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine import streaming_engine
 from infinihand_ros.engine.config import CAMERA_MOTIONS
 from infinihand_ros.engine.config import load_engine_config
@@ -52,13 +55,14 @@ from infinihand_ros.ros.estimator.config import OutputSwitches
 from infinihand_ros.ros.estimator.config import TFSettings
 from infinihand_ros.ros.estimator.publishers import OutputPublishers
 import numpy as np
+from rclpy.serialization import serialize_message
 import torch
 
 ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_BAG = ROOT / 'data' / 'sample_bag'
 JPEG_QUALITY = 90
 MS_PER_S = 1e3
-PATH_LENGTH = 1000
+SWITCHES = OutputSwitches()  # the node's defaults: path length and publishing period
 
 
 class StageClock:
@@ -112,7 +116,7 @@ def _instrument(stack: contextlib.ExitStack, engine: StreamingEngine, clock: Sta
     source = engine._hand_source
     stages: list[tuple[object, str, str]] = [
         (engine, '_prepare', 'prepare (fit to the model)'),
-        (source, 'detect', 'prepare (fit to the model)/hand source detection'),
+        (source, 'detect', 'hand source detection (own thread)'),
         (model, 'run_geometry', 'geometry branch'),
         (geometry.aggregator, 'forward', 'geometry branch/aggregator'),
         (geometry.camera_head, 'forward', 'geometry branch/camera head'),
@@ -156,11 +160,11 @@ def _instrument(stack: contextlib.ExitStack, engine: StreamingEngine, clock: Sta
 
 
 class _SilentPublisher:
-    """A publisher that drops every message (message building is what is timed)."""
+    """A publisher that serialises every message as rclpy's would and sends nothing."""
 
     def publish(self, message: object) -> None:
-        """Drop ``message``."""
-        del message
+        """Serialise ``message``."""
+        serialize_message(message)
 
 
 class _SilentNode:
@@ -187,9 +191,9 @@ def _sample_frames() -> list[tuple[bytes, Any]]:
 def _profile(engine: StreamingEngine, frames: list[tuple[bytes, Any]], count: int) -> dict:
     """Stream ``count`` frames through ``engine``; return per-stage ms/frame and the wall."""
     clock = StageClock()
-    publishers = OutputPublishers(_SilentNode(), OutputSwitches(), FrameIds(),
+    publishers = OutputPublishers(_SilentNode(), SWITCHES, FrameIds(),
                                   TFSettings(enabled=False))
-    path = CameraPath(PATH_LENGTH)
+    path = CameraPath(SWITCHES.path_length)
     results = 0
     with contextlib.ExitStack() as stack:
         _instrument(stack, engine, clock)
@@ -218,12 +222,13 @@ def _profile(engine: StreamingEngine, frames: list[tuple[bytes, Any]], count: in
 def _publish(clock: StageClock, publishers: OutputPublishers, path: CameraPath,
              results: list) -> int:
     """Build the node's messages for ``results`` (timed) the way the node does; return count."""
-    with clock.stage('publishing (message building)'):
+    period_ns = int(SWITCHES.path_period_s * NS_PER_S)
+    with clock.stage('publishing (build, serialise)'):
         for position, result in enumerate(results, start=1):
             path.add(result.frame_index, result.timestamp_ns,
                      PoseFields.from_camera_pose(result.camera_pose), result.pose_version)
-            publishers.publish(result, 'camera', path.poses() if position == len(results)
-                               else None)
+            publishers.publish(result, 'camera', path.poses_due(result.timestamp_ns, period_ns)
+                               if position == len(results) else None)
     return len(results)
 
 
@@ -242,9 +247,10 @@ def _print(mode: str, figures: dict) -> None:
         print(f'  {label:52s} {stages[name]:8.2f} ms/frame  {figures["calls"][name]:6d} calls')
 
 
-_TOP = ('decode (JPEG)', 'push (engine, main thread)', 'prepare (fit to the model)',
+_TOP = ('decode (JPEG)', 'push (engine, main thread)', 'hand source detection (own thread)',
+        'prepare (fit to the model)',
         'geometry branch', 'hands', 'engine bookkeeping', 'depth head (on demand)',
-        'publishing (message building)')
+        'publishing (build, serialise)')
 
 
 def _stage_order(name: str) -> tuple[int, str]:

@@ -29,7 +29,7 @@ def test_profile_times_every_stage_of_a_few_frames() -> None:
     figures = json.loads(run.stdout.strip().splitlines()[-1])
     stages = figures['per_frame']['stages_ms_per_frame']
     for stage in ('decode (JPEG)', 'geometry branch/aggregator', 'depth head (on demand)',
-                  'engine bookkeeping/tracker', 'publishing (message building)'):
+                  'engine bookkeeping/tracker', 'publishing (build, serialise)'):
         assert stages[stage] > 0, stage
     assert figures['per_frame']['fps'] > 0
 

@@ -10,6 +10,7 @@ those are the pose track's (``engine/pose_track.py``) and ``engine/world_placeme
 """
 
 from collections.abc import Callable
+from concurrent.futures import Future
 from dataclasses import dataclass
 
 from infinihand_ros.core.datatypes import HandState
@@ -37,8 +38,9 @@ class PreparedFrame:
         intrinsics: the given source intrinsics, or None (the model's FoV is used).
         keyframe: whether the frame enters the streaming memory.
         source_image: a copy of the source RGB image when bundle adjustment needs it, else None.
-        detections: what the hand source found in the source image when the frame was pushed
-            (``HandSource.detect``; empty for the hand branch without its guard).
+        detections: the hand source's detection in the source image, started when the frame
+            was pushed (``HandSource.detect`` in the engine's detection thread, beside the
+            model), or None when the source reads no image; ``found()`` waits for it.
 
     """
 
@@ -49,7 +51,11 @@ class PreparedFrame:
     intrinsics: Intrinsics | None
     keyframe: bool
     source_image: np.ndarray | None = None
-    detections: tuple = ()
+    detections: Future | None = None
+
+    def found(self) -> tuple:
+        """Return what the hand source found in the frame (waits for it; empty without one)."""
+        return () if self.detections is None else tuple(self.detections.result())
 
 
 class FrameDepth:

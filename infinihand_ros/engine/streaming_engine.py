@@ -12,7 +12,8 @@ consumer gets. The depth head runs only on the frames whose depth is used (a new
 reference, a metric-scale sample, a keyframe for BA; every keyframe with ``depth_maps``). A fixed
 camera whose hands come from outside the model (``camera_motion: static`` with MediaPipe) skips
 the geometry branch wherever the intrinsics are known (given, or fixed from the first frames'
-predictions): the hand source is all such a frame needs.
+predictions): the hand source is all such a frame needs. A hand source that reads images
+(MediaPipe) does so in its own thread, in push order, while the model runs on the frame.
 
 The first ``anchor_frames`` frames are held back and processed together (the paper's anchor
 context), in both modes. After that, per-frame mode runs each frame as it arrives; windowed mode
@@ -114,6 +115,9 @@ class StreamingEngine:
                           and cpu_bf16_supported())
         self._decoder = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_decode')
                          if self.config.mode == 'windowed' else None)
+        # The hand source reads each image in its own thread, beside the model (in order).
+        self._detector = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_detect')
+                          if self._hand_source.needs_image else None)
         self._guard = threading.Lock()
         self._closed = False
         self._start_sequence()
@@ -260,14 +264,15 @@ class StreamingEngine:
             self._start_sequence()
 
     def close(self) -> None:
-        """Stop the hand-decoding worker (windowed mode) and the BA worker; idempotent."""
+        """Stop the hand detection and decoding workers and the BA worker; idempotent."""
         with self._guard:
             if self._closed:
                 return
             self._closed = True
             self._drain()
-            if self._decoder is not None:
-                self._decoder.shutdown(wait=True)
+            for worker in (self._decoder, self._detector):
+                if worker is not None:
+                    worker.shutdown(wait=True)
             if self._ba is not None:
                 self._ba.close()
             self._hand_source.close()
@@ -312,8 +317,8 @@ class StreamingEngine:
         after_anchors = index - self._anchor_frames
         keyframe = after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0
         source = image.copy() if self._ba is not None and keyframe else None
-        detections = (tuple(self._hand_source.detect(image, index))
-                      if self._hand_source.needs_image else ())
+        detections = (None if self._detector is None else
+                      self._detector.submit(self._hand_source.detect, image.copy(), index))
         return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, source,
                              detections)
 
@@ -332,7 +337,7 @@ class StreamingEngine:
                           ) -> list[CameraSpaceFrame]:
         """Return a fixed camera's frame record with its source's hands, no model run."""
         self._counts['frames_without_geometry'] += 1
-        hands = self._hand_source.camera_hands(frame.detections, (), intrinsics)
+        hands = self._hand_source.camera_hands(frame.found(), (), intrinsics)
         return [CameraSpaceFrame(frame, np.eye(4), intrinsics, hands, None, None)]
 
     def _fix_intrinsics(self, record: CameraSpaceFrame) -> None:
@@ -391,7 +396,7 @@ class StreamingEngine:
             else:
                 records = split_geometry(geometry, poses, used, frames, branch, self._tracking)
         return [dataclasses.replace(record, hands=source.camera_hands(
-            record.frame.detections, record.hands, record.intrinsics)) for record in records]
+            record.frame.found(), record.hands, record.intrinsics)) for record in records]
 
     def _given_intrinsics(self, frames: list[PreparedFrame]
                           ) -> tuple[torch.Tensor | None, torch.Tensor | None]:
@@ -413,10 +418,12 @@ class StreamingEngine:
         return results
 
     def _drain(self) -> None:
-        """Wait for queued hand decoding and drop its results (reset and close)."""
+        """Wait for queued hand detection and decoding and drop their results (reset, close)."""
         while self._decoding:
             self._decoding.popleft().exception()
         self._pending.clear()
+        if self._detector is not None:  # one worker, in order: this runs after the queued ones
+            self._detector.submit(lambda: None).result()
 
     def _finish(self, record: CameraSpaceFrame) -> FrameResult:
         """Track the frame's pose, feed BA, place its hands in the world: its final result."""

@@ -29,3 +29,20 @@ def test_new_version_refreshes_known_poses() -> None:
     assert [p.position[0] for _, p in path.poses()] == [10.0, 1.0, 2.0]
     path.add(3, 103, pose(3.0), 1, {1: pose(99.0)}.get)  # same version: no refresh
     assert [p.position[0] for _, p in path.poses()] == [10.0, 1.0, 2.0, 3.0]
+
+
+def test_publication_is_paced_by_image_time_and_follows_refreshes() -> None:
+    """Due with the first frame, then once per period of image time and after each refresh."""
+    path = CameraPath(10)
+    due = []
+    for index, stamp in enumerate([0, 400, 900, 1000, 1500, 2100]):
+        path.add(index, stamp, pose(index), 0)
+        due.append(path.poses_due(stamp, period_ns=1000) is not None)
+    assert due == [True, False, False, True, False, True]
+    path.add(6, 2200, pose(6.0), 1, {0: pose(10.0)}.get)  # a new version: refreshed
+    assert path.poses_due(2200, period_ns=1000)[0][1].position[0] == 10.0
+    assert path.poses_due(2300, period_ns=1000) is None
+    assert path.poses_due(2300, period_ns=0) is not None  # period 0: every frame
+    path.clear()
+    path.add(0, 5, pose(0.0), 0)
+    assert path.poses_due(5, period_ns=1000) is not None  # a new stream starts afresh

@@ -14,6 +14,7 @@ from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.output_fields import hand_output
+from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.ros.estimator.config import FrameIds
 from infinihand_ros.ros.estimator.config import OutputSwitches
 from infinihand_ros.ros.estimator.config import TFSettings
@@ -190,3 +191,21 @@ def test_tf_switches(fake_tf2_msgs: type) -> None:
         'operator/right_wrist']
     off = _publish_frames(TFSettings(enabled=False))
     assert publishers.TF_TOPIC not in off.publishers and off.logger.warnings == []
+
+
+def test_the_path_reuses_the_messages_of_unchanged_poses() -> None:
+    """A path message equals one built afresh; poses that did not change keep their messages."""
+    msg_builders = pytest.importorskip('infinihand_ros.ros.msg_builders')
+    node = _Node()
+    outputs = publishers.OutputPublishers(node, OutputSwitches(), FRAMES,
+                                          TFSettings(enabled=False))
+    poses = [(stamp, PoseFields(np.array([stamp, 0.0, 0.0]), np.array([0.0, 0.0, 0.0, 1.0])))
+             for stamp in (10, 20, 30)]
+    outputs.publish(_result(), 'camera', poses[:2])
+    refreshed = (20, PoseFields(np.array([5.0, 0.0, 0.0]), np.array([0.0, 0.0, 0.0, 1.0])))
+    outputs.publish(_result(), 'camera', [poses[0], refreshed, poses[2]])
+    first, second = node.publishers['~/camera_path'].sent
+    assert second == msg_builders.path_msg(STAMP, 'world', [poses[0], refreshed, poses[2]])
+    assert second.poses[0] is first.poses[0]  # unchanged: the same message
+    assert second.poses[1] is not first.poses[1]  # refreshed: built again
+    assert second.poses[1].pose.position.x == 5.0

@@ -3,6 +3,8 @@
 It keeps the newest ``capacity`` poses with their stamps and engine frame indices. When the
 engine's pose version changes (a new metric scale or BA corrections), ``refresh`` re-reads the
 poses still known to the engine, so the whole published path follows the best trajectory.
+``poses_due`` paces publishing: a path of a thousand poses takes tens of milliseconds to build
+and serialise, too much to send with every frame of a live camera.
 """
 
 from collections import OrderedDict
@@ -22,6 +24,8 @@ class CameraPath:
         self.capacity = capacity
         self._poses: OrderedDict[int, tuple[int, PoseFields]] = OrderedDict()
         self._version: int | None = None
+        self._published_ns: int | None = None  # stamp of the frame the path last went out with
+        self._refreshed = False  # poses changed since then
 
     def __len__(self) -> int:
         """Return the number of poses held."""
@@ -41,6 +45,21 @@ class CameraPath:
         """Replace every pose ``lookup`` still knows by its current value."""
         for frame_index, (stamp_ns, pose) in self._poses.items():
             self._poses[frame_index] = (stamp_ns, lookup(frame_index) or pose)
+        self._refreshed = True
+
+    def poses_due(self, stamp_ns: int, period_ns: int) -> list[tuple[int, PoseFields]] | None:
+        """Return the poses to publish with the frame stamped ``stamp_ns``, or None.
+
+        Due with the first frame, once ``period_ns`` has passed since the last publication
+        (image time), and after a refresh (the trajectory changed); ``period_ns`` 0: always.
+        """
+        last = self._published_ns
+        if not (last is None or self._refreshed or stamp_ns - last >= period_ns
+                or stamp_ns < last):
+            return None
+        self._published_ns = stamp_ns
+        self._refreshed = False
+        return self.poses()
 
     def poses(self) -> list[tuple[int, PoseFields]]:
         """Return (stamp ns, pose) oldest first."""
@@ -50,3 +69,5 @@ class CameraPath:
         """Forget every pose."""
         self._poses.clear()
         self._version = None
+        self._published_ns = None
+        self._refreshed = False

@@ -260,9 +260,11 @@ class EstimatorNode(Node):
             self.path.add(result.frame_index, result.timestamp_ns,
                           PoseFields.from_camera_pose(result.camera_pose), result.pose_version,
                           self._best_pose)
+        period_ns = int(self.config.outputs.path_period_s * NS_PER_S)
         for position, result in enumerate(results, start=1):
             # The path holds every result of this push: publish it with the newest one only.
-            path = self.path.poses() if position == len(results) else None
+            path = (self.path.poses_due(result.timestamp_ns, period_ns)
+                    if position == len(results) else None)
             self.outputs.publish(result, camera_frame, path)
             now = self._now_ns()
             stamp = result.timestamp_ns

@@ -105,6 +105,8 @@ class OutputPublishers:
         self.frames = frames
         self.world = frames.world_frame_id
         self.tf = tf
+        # The last path's pose messages by stamp, with the pose each was built from.
+        self._path_poses: dict[int, tuple[PoseFields, PoseStamped]] = {}
         create = node.create_publisher
         self.camera_pose = create(PoseStamped, '~/camera_pose', OUTPUT_QOS)
         self.camera_path = create(Path, '~/camera_path', LATCHED_QOS)
@@ -145,7 +147,7 @@ class OutputPublishers:
             self.camera_pose.publish(msg_builders.pose_stamped_msg(
                 stamp, self.world, PoseFields.from_camera_pose(result.camera_pose)))
         if switches.camera_path and path is not None:
-            self.camera_path.publish(msg_builders.path_msg(stamp, self.world, path))
+            self.camera_path.publish(self._path_msg(stamp, path))
         if switches.camera_info:
             self.camera_info.publish(msg_builders.camera_info_msg(stamp, camera_frame_id,
                                                                   result.intrinsics))
@@ -163,6 +165,17 @@ class OutputPublishers:
                                           camera_frame_id if self.tf.camera else None)
             if transforms:
                 self.transforms.publish(self._tf_message(transforms=transforms))
+
+    def _path_msg(self, stamp: int, path: list[tuple[int, PoseFields]]) -> Path:
+        """Return the path message, reusing the pose messages of poses that did not change."""
+        cached, fresh = self._path_poses, {}
+        for pose_stamp, pose in path:
+            hit = cached.get(pose_stamp)
+            fresh[pose_stamp] = (pose, hit[1] if hit is not None and hit[0] is pose else
+                                 msg_builders.pose_stamped_msg(pose_stamp, self.world, pose))
+        self._path_poses = fresh
+        return Path(header=msg_builders.header(stamp, self.world),
+                    poses=[message for _, message in fresh.values()])
 
     def _publish_hands(self, stamp: int, hands: dict[int, HandOutput | None]) -> None:
         """Publish each side's wrist pose and landmark arrays (empty when not seen)."""
