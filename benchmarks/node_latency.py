@@ -158,8 +158,8 @@ class Listener:
         self.node.create_subscription(CompressedImage, IMAGE_TOPIC,
                                       lambda m: self._stamp(self.inputs, m),
                                       qos_profile_sensor_data)
-        self.node.create_subscription(PoseStamped, POSE_TOPIC,
-                                      lambda m: self._stamp(self.outputs, m), 10)
+        self.poses = self.node.create_subscription(PoseStamped, POSE_TOPIC,
+                                                   lambda m: self._stamp(self.outputs, m), 10)
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._diagnostic, 10)
         self._executor = SingleThreadedExecutor()
         self._executor.add_node(self.node)
@@ -173,6 +173,14 @@ class Listener:
         for status in msg.status:
             if status.name.endswith(': estimator'):
                 self.diagnostics = {kv.key: kv.value for kv in status.values}
+
+    def wait_matched(self, timeout_s: float = 20.0) -> None:
+        """Wait until the estimator's pose publisher is matched (its first outputs count)."""
+        deadline = time.monotonic() + timeout_s
+        while self.poses.get_publisher_count() == 0:
+            if time.monotonic() > deadline:
+                raise RuntimeError(f'no publisher of {POSE_TOPIC} matched in {timeout_s:g} s')
+            time.sleep(0.05)
 
     def close(self) -> None:
         """Stop listening."""
@@ -301,6 +309,7 @@ def run_once(profile: str, rate_hz: float, ba: str, segment: Path, images: int,
             helpers.append(start('bundle_adjustment', [], work / f'ba_{rate_hz:g}.log'))
             wait_ready(helpers[0], work / f'ba_{rate_hz:g}.log')
         listener = Listener()
+        listener.wait_matched()
         replay = start('replay', [str(segment), '--rate', f'{rate_hz / BAG_FPS:g}',
                                   '--wait-for-subscribers', '20'], work / 'replay.log')
         replay.wait()

@@ -33,8 +33,9 @@ class PreparedFrame:
     Attributes:
         index: 0-based index in the stream.
         timestamp_ns: the source image's stamp.
-        pixels: (3, H, W) float32 RGB in [0, 1] at the model size.
-        mapping: mapping between source and model pixels.
+        pixels: (3, H, W) float32 RGB in [0, 1] at the model size; None for a frame that goes
+            on without the model (a fixed camera with hands found outside it).
+        mapping: mapping between source and model pixels (None with ``pixels``).
         intrinsics: the given source intrinsics, or None (the model's FoV is used).
         keyframe: whether the frame enters the streaming memory.
         source_image: a copy of the source RGB image when bundle adjustment needs it, else None.
@@ -46,8 +47,8 @@ class PreparedFrame:
 
     index: int
     timestamp_ns: int
-    pixels: torch.Tensor
-    mapping: FrameMapping
+    pixels: torch.Tensor | None
+    mapping: FrameMapping | None
     intrinsics: Intrinsics | None
     keyframe: bool
     source_image: np.ndarray | None = None

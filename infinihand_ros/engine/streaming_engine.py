@@ -182,9 +182,8 @@ class StreamingEngine:
             frame = self._prepare(image, timestamp_ns, intrinsics)
             self._frames_pushed += 1
             self._last_stamp = frame.timestamp_ns
-            known = self._intrinsics_without_geometry(frame)
-            if known is not None:
-                self._decoding.append(_done(self._without_geometry(frame, known)))
+            if frame.pixels is None:  # no model input: the geometry branch is not needed
+                self._decoding.append(_done(self._without_geometry(frame)))
             else:
                 self._pending.append(frame)
                 if len(self._pending) >= self._block_size():
@@ -300,7 +299,11 @@ class StreamingEngine:
 
     def _prepare(self, image: np.ndarray, timestamp_ns: int,
                  intrinsics: Intrinsics | None) -> PreparedFrame:
-        """Check a frame and fit it to the model size (raises before any state changes)."""
+        """Check a frame and fit it to the model size (raises before any state changes).
+
+        A frame that goes on without the geometry branch (``_skips_geometry``) is not fitted:
+        its ``pixels`` and ``mapping`` are None.
+        """
         stamp = check_timestamp(timestamp_ns, self._last_stamp)
         image = check_image(image)
         intrinsics = check_intrinsics(intrinsics, image)
@@ -309,10 +312,12 @@ class StreamingEngine:
             raise InputError(f"image: {size[0]}x{size[1]} px, but this stream's frames are "
                              f'{self._source_size[0]}x{self._source_size[1]} px; keep one image '
                              'size per stream (resize the frames) or reset() between streams')
-        geometry = self.model.geometry.config
-        fitted, mapping = fit_image(image, geometry.preprocessing, geometry.aggregator)
+        pixels = mapping = None
+        if not self._skips_geometry(intrinsics):
+            geometry = self.model.geometry.config
+            fitted, mapping = fit_image(image, geometry.preprocessing, geometry.aggregator)
+            pixels = torch.from_numpy(fitted).to(self._device).permute(2, 0, 1).float() / 255.0
         self._source_size = size
-        pixels = torch.from_numpy(fitted).to(self._device).permute(2, 0, 1).float() / 255.0
         index = self._frames_pushed
         after_anchors = index - self._anchor_frames
         keyframe = after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0
@@ -322,21 +327,20 @@ class StreamingEngine:
         return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, source,
                              detections)
 
-    def _intrinsics_without_geometry(self, frame: PreparedFrame) -> Intrinsics | None:
-        """Return the intrinsics a frame goes on without the geometry branch, or None.
+    def _skips_geometry(self, intrinsics: Intrinsics | None) -> bool:
+        """Return whether a frame with these given intrinsics goes on without the model.
 
         A fixed camera whose hands come from outside the model needs the geometry branch only
-        for intrinsics: none when they are given, or once the first frames' predictions fixed
+        for intrinsics: not when they are given, or once the first frames' predictions fixed
         them (``static_intrinsics_frames``). Frames never overtake held-back ones.
         """
-        if not self.static or self._hand_source.uses_hand_branch or self._pending:
-            return None
-        return frame.intrinsics or self._fixed_intrinsics
+        return (self.static and not self._hand_source.uses_hand_branch and not self._pending
+                and (intrinsics is not None or self._fixed_intrinsics is not None))
 
-    def _without_geometry(self, frame: PreparedFrame, intrinsics: Intrinsics
-                          ) -> list[CameraSpaceFrame]:
+    def _without_geometry(self, frame: PreparedFrame) -> list[CameraSpaceFrame]:
         """Return a fixed camera's frame record with its source's hands, no model run."""
         self._counts['frames_without_geometry'] += 1
+        intrinsics = frame.intrinsics or self._fixed_intrinsics
         hands = self._hand_source.camera_hands(frame.found(), (), intrinsics)
         return [CameraSpaceFrame(frame, np.eye(4), intrinsics, hands, None, None)]
 
