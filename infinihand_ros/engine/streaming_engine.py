@@ -439,14 +439,14 @@ class StreamingEngine:
                      for hand in record.hands]
             view = dataclasses.replace(record.view, hand_boxes=np.array(boxes).reshape(-1, 4))
         track.add(frame.index, frame.timestamp_ns, record.T_raw, view)
-        samples = self._scale_samples(record)
-        track.observe_scale(samples, np.ones(len(samples)))
-        self._fix_intrinsics(record)
         to_ba = (self._ba is not None and frame.keyframe and frame.source_image is not None
                  and record.depth is not None)
-        depth = None
-        if record.depth is not None and frame.keyframe and (to_ba or self.config.depth_maps):
-            depth = frame.mapping.map_to_source(record.depth.model()) * track.scale
+        kept = record.depth is not None and frame.keyframe and (to_ba or self.config.depth_maps)
+        samples = self._scale_samples(record, kept)
+        track.observe_scale(samples, np.ones(len(samples)))
+        self._fix_intrinsics(record)
+        depth = (frame.mapping.map_to_source(record.depth.model()) * track.scale if kept
+                 else None)
         if record.depth is not None and record.depth.computed:
             self._counts['frames_with_depth'] += 1
         if self._ba is not None:
@@ -462,16 +462,17 @@ class StreamingEngine:
             hand_source=self._hand_source.name,
             **self._posed(record.hands, track.best(frame.index))))
 
-    def _scale_samples(self, record: CameraSpaceFrame) -> np.ndarray:
+    def _scale_samples(self, record: CameraSpaceFrame, depth_kept: bool) -> np.ndarray:
         """Return the metric-scale samples of a frame's hands, on the frames that are sampled.
 
         Every frame while the scale warms up; after that every ``sample_interval``-th frame
-        and any frame whose depth was computed anyway (a tracker reference).
+        and any frame whose depth is computed anyway (a tracker reference, or ``depth_kept``:
+        a keyframe for BA or ``depth_maps``).
         """
         depth, hands = record.depth, record.hands
         interval = self.config.metric_scale.sample_interval
         if depth is None or not hands or not (
-                depth.computed or self.pose_track.scale_state == 'warmup'
+                depth.computed or depth_kept or self.pose_track.scale_state == 'warmup'
                 or record.frame.index % interval == 0):
             return np.zeros(0)
         return depth_ratios(depth.model(), record.frame, hands)
