@@ -18,7 +18,8 @@ person per hand track).
 orientation, then, level by level down each finger, every joint gets the smallest rotation that
 turns its rest bone (as its parent now holds it) onto the keypoints' bone. It needs no
 iteration (well under a millisecond per frame); ``fit_mano(..., initial=...)`` then refines
-shape and twist in a few L-BFGS steps.
+shape and twist in a few L-BFGS steps. For one frame's hand ``model_joints`` and ``rest_joints``
+pose the float64 built-in skeleton in numpy: torch's cost per call would dominate.
 """
 
 from dataclasses import dataclass
@@ -28,11 +29,14 @@ from typing import Final
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.geometry import axis_angle_to_matrix
 from infinihand_ros.core.hand_conventions import NUM_BETAS
 from infinihand_ros.core.hand_conventions import NUM_HAND_POSE_JOINTS
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
+from infinihand_ros.core.hand_conventions import NUM_MANO_JOINTS
 from infinihand_ros.core.hand_conventions import OPENPOSE_TO_MANO
 from infinihand_ros.mano.base import HandModel
+from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.mano.kinematics import CHAIN_LEVELS
 from infinihand_ros.mano.kinematics import CHAIN_TIPS
 from infinihand_ros.mano.kinematics import PARENTS_WITH_TIPS
@@ -44,6 +48,22 @@ import torch
 #: Palm joints (wrist, MCPs of index, middle, ring, pinky) used for the rigid initialisation.
 PALM_JOINTS: Final = (0, 5, 9, 13, 17)
 _M_TO_MM: Final = 1000.0
+#: The palm joints' MANO indices.
+_PALM_MANO: Final = np.array([OPENPOSE_TO_MANO.index(joint) for joint in PALM_JOINTS])
+#: The joints below the wrist by depth (the chains' levels, then the tips), each as (MANO
+#: indices with tips, their parents' indices).
+_LEVELS: Final = tuple((np.array(level), np.array([PARENTS_WITH_TIPS[j] for j in level]))
+                       for level in CHAIN_LEVELS + (CHAIN_TIPS,))
+#: The finger bones, MANO indices with tips, as (levels, chains) arrays: each bone's joint and
+#: the joint's child.
+_BONE_STARTS: Final = np.array(CHAIN_LEVELS)
+_BONE_ENDS: Final = np.array(CHAIN_LEVELS[1:] + (CHAIN_TIPS,))
+#: Cyclic axis orders (y, z, x) and (z, x, y) of a cross product.
+_NEXT_AXIS: Final = np.array([1, 2, 0])
+_LAST_AXIS: Final = np.array([2, 0, 1])
+#: Axis-angle of the tips' local rotations (they turn nothing), and the rest pose's rotations.
+_TIP_ROTATIONS: Final = np.zeros((NUM_JOINTS - NUM_MANO_JOINTS, 3))
+_REST_ROTATIONS: Final = np.broadcast_to(np.eye(3), (NUM_JOINTS, 3, 3))
 
 
 @dataclass(frozen=True)
@@ -322,13 +342,18 @@ def fit_mano(model: HandModel, keypoints: np.ndarray, valid: np.ndarray | None =
         seconds=time.perf_counter() - start)
 
 
+def _unit(vectors: np.ndarray) -> np.ndarray:
+    """Return vectors (K, 3) scaled to unit length (zero-length ones stay near zero)."""
+    return vectors / np.maximum(np.sqrt(np.einsum('ki,ki->k', vectors, vectors)), 1e-12)[:, None]
+
+
 def _swing(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     """Smallest rotations (K, 3, 3) turning directions ``source`` onto ``target`` (K, 3)."""
-    a = source / np.maximum(np.linalg.norm(source, axis=-1, keepdims=True), 1e-12)
-    b = target / np.maximum(np.linalg.norm(target, axis=-1, keepdims=True), 1e-12)
-    axis = np.cross(a, b)
-    angle = np.arctan2(np.linalg.norm(axis, axis=-1), np.sum(a * b, axis=-1))
-    unit = axis / np.maximum(np.linalg.norm(axis, axis=-1, keepdims=True), 1e-12)
+    a, b = _unit(source), _unit(target)
+    axis = a[:, _NEXT_AXIS] * b[:, _LAST_AXIS] - a[:, _LAST_AXIS] * b[:, _NEXT_AXIS]  # a x b
+    sine = np.sqrt(np.einsum('ki,ki->k', axis, axis))
+    angle = np.arctan2(sine, np.einsum('ki,ki->k', a, b))
+    unit = axis / np.maximum(sine, 1e-12)[:, None]
     return Rotation.from_rotvec(unit * angle[:, None]).as_matrix()
 
 
@@ -341,16 +366,63 @@ def _kabsch(source: np.ndarray, target: np.ndarray) -> np.ndarray:
     return vt.T @ np.diag([1.0, 1.0, d]) @ u.T
 
 
+def _posed_in_numpy(model: HandModel) -> bool:
+    """Return whether ``model`` is the float64 built-in skeleton, which is posed in numpy."""
+    return type(model) is BuiltinHandModel and model.rest_offsets.dtype == torch.float64
+
+
+def _skeleton_joints(model: BuiltinHandModel, betas: np.ndarray,
+                     local: np.ndarray) -> np.ndarray:
+    """Return the built-in skeleton's (21, 3) joints, MANO order with tips, without translation.
+
+    ``model``'s forward pass for one hand, the same numbers without torch's cost per call.
+
+    Args:
+        model: the float64 built-in skeleton.
+        betas: (10,) shape.
+        local: (21, 3, 3) local rotations, MANO order with tips (the wrist's orientation first;
+            the tips' turn nothing).
+
+    """
+    log_scale = np.tensordot(betas, model.shape_log_scales.cpu().numpy(), axes=1)
+    offsets = model.rest_offsets.cpu().numpy() * np.exp(log_scale)
+    rotations, positions = local.copy(), offsets.copy()  # the wrist's are final already
+    for joints, parents in _LEVELS:
+        positions[joints] = positions[parents] + np.einsum('kij,kj->ki', rotations[parents],
+                                                           offsets[joints])
+        rotations[joints] = rotations[parents] @ local[joints]
+    return positions
+
+
+def model_joints(model: HandModel, params: ManoParams) -> np.ndarray:
+    """Return the model's (21, 3) joints for one frame's ``params`` (float64, OpenPose order).
+
+    The float64 built-in skeleton is posed in numpy; any other model is called.
+    """
+    if _posed_in_numpy(model):
+        local = axis_angle_to_matrix(np.concatenate([params.global_orient[None], params.hand_pose,
+                                                     _TIP_ROTATIONS]))
+        joints = _skeleton_joints(model, params.betas, local)
+        return joints[model.to_openpose.cpu().numpy()] + params.transl
+    reference = next(model.buffers())
+
+    def batch(value: np.ndarray) -> torch.Tensor:
+        return torch.as_tensor(value[None], dtype=reference.dtype, device=reference.device)
+
+    with torch.inference_mode():
+        out = model(batch(params.global_orient), batch(params.hand_pose), batch(params.betas),
+                    batch(params.transl))
+    return out.joints[0].cpu().numpy().astype(np.float64)
+
+
 def rest_joints(model: HandModel, betas: np.ndarray | None = None) -> np.ndarray:
     """Return the model's (21, 3) joints at zero pose and translation, MANO order with tips."""
-    reference = next(model.buffers())
-    zeros = torch.zeros
-    shape = zeros(1, NUM_BETAS) if betas is None else torch.as_tensor(np.asarray(betas)[None])
-    with torch.no_grad():
-        joints = model(zeros(1, 3, dtype=reference.dtype),
-                       zeros(1, NUM_HAND_POSE_JOINTS, 3, dtype=reference.dtype),
-                       shape.to(reference.dtype), zeros(1, 3, dtype=reference.dtype)).joints
-    return joints[0].detach().cpu().numpy().astype(np.float64)[list(OPENPOSE_TO_MANO)]
+    shape = np.zeros(NUM_BETAS) if betas is None else np.asarray(betas, dtype=np.float64)
+    if _posed_in_numpy(model):
+        return _skeleton_joints(model, shape, _REST_ROTATIONS)
+    zero = np.zeros(3)
+    rest = ManoParams(zero, np.zeros((NUM_HAND_POSE_JOINTS, 3)), shape, zero)
+    return model_joints(model, rest)[list(OPENPOSE_TO_MANO)]
 
 
 def inverse_kinematics(model: HandModel, keypoints: np.ndarray,
@@ -378,19 +450,18 @@ def inverse_kinematics(model: HandModel, keypoints: np.ndarray,
         raise InputError('inverse_kinematics: every keypoint must be finite')
     target = points_np[0][list(OPENPOSE_TO_MANO)]
     rest = rest_joints(model, betas) if rest is None else rest
-    palm = [OPENPOSE_TO_MANO.index(joint) for joint in PALM_JOINTS]
     rotations = np.zeros((len(PARENTS_WITH_TIPS), 3, 3))
-    rotations[0] = _kabsch(rest[palm], target[palm])
+    rotations[0] = _kabsch(rest[_PALM_MANO], target[_PALM_MANO])
     local = np.zeros((NUM_HAND_POSE_JOINTS + 1, 3, 3))
     local[0] = rotations[0]
-    levels = list(CHAIN_LEVELS) + [CHAIN_TIPS]
-    for joints, children in zip(levels[:-1], levels[1:]):
-        joints, children = list(joints), list(children)
-        parents = [PARENTS_WITH_TIPS[j] for j in joints]
-        held = np.einsum('kij,kj->ki', rotations[parents], rest[children] - rest[joints])
-        swing = _swing(held, target[children] - target[joints])
-        rotations[joints] = swing @ rotations[parents]
-        local[joints] = np.swapaxes(rotations[parents], -1, -2) @ rotations[joints]
-    vectors = Rotation.from_matrix(local).as_rotvec()
+    rest_bones = rest[_BONE_ENDS] - rest[_BONE_STARTS]
+    target_bones = target[_BONE_ENDS] - target[_BONE_STARTS]
+    for (joints, parents), rest_bone, target_bone in zip(_LEVELS[:-1], rest_bones, target_bones):
+        parent = rotations[parents]
+        turned = _swing(np.einsum('kij,kj->ki', parent, rest_bone), target_bone) @ parent
+        rotations[joints] = turned
+        local[joints] = np.swapaxes(parent, -1, -2) @ turned
+    # Products of rotations, orthonormal to rounding: scipy need not orthonormalise them again.
+    vectors = Rotation.from_matrix(local, assume_valid=True).as_rotvec()
     shape = np.zeros(NUM_BETAS) if betas is None else np.asarray(betas, dtype=np.float64)
     return ManoParams(vectors[0], vectors[1:], shape.copy(), target[0] - rest[0])

@@ -9,11 +9,14 @@ the hand the paper's branch produces, in three steps:
    betas, so one person keeps one shape), optionally refined by ``fit_mano`` warm-started
    there;
 2. the root depth ``t_z`` and lateral translation: for each candidate depth the paper's eq. 5
-   least-squares projection (``model/hand/lsp.py``) gives ``(t_x, t_y)``; the depth minimising
-   the mean pixel error is found by a grid search refined twice (the hand's metric size fixes
-   it);
+   least-squares projection (``model/hand/lsp.py``, here in numpy) gives ``(t_x, t_y)``; the
+   depth minimising the mean pixel error is found by a grid search refined twice (the hand's
+   metric size fixes it);
 3. a ``HandState`` in camera space: MANO parameters with that translation, joints, the
    landmarks as 2D joints, the landmark box, and the source's confidence.
+
+Everything runs in numpy on one hand's 21 joints (with the float64 built-in skeleton, the hand
+model too): torch's cost per call would be most of the time.
 """
 
 from dataclasses import dataclass
@@ -22,14 +25,14 @@ from typing import Final
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.datatypes import ManoParams
+from infinihand_ros.core.geometry import MIN_PROJECTION_DEPTH_M
 from infinihand_ros.data.mano_fit import fit_mano
 from infinihand_ros.data.mano_fit import inverse_kinematics
 from infinihand_ros.data.mano_fit import ManoFitConfig
+from infinihand_ros.data.mano_fit import model_joints
 from infinihand_ros.data.mano_fit import rest_joints
 from infinihand_ros.mano.base import HandModel
-from infinihand_ros.model.hand.lsp import solve_lateral_translation
 import numpy as np
-import torch
 
 #: Root depths searched, metres (hands from touching the lens to across a room).
 DEPTH_RANGE_M: Final = (0.05, 5.0)
@@ -39,6 +42,11 @@ RAY_PASSES: Final = 2
 #: Depths per grid of the root-depth search, and finer grids after the first.
 DEPTH_GRID: Final = 48
 DEPTH_REFINEMENTS: Final = 2
+#: Smallest eq. 5 denominator treated as "no joint in front of the camera" (as in lsp.py).
+_MIN_DENOMINATOR: Final = 1e-12
+#: The first grid of root depths, log-spaced over ``DEPTH_RANGE_M``.
+_FIRST_DEPTHS: Final = np.exp(np.linspace(np.log(DEPTH_RANGE_M[0]), np.log(DEPTH_RANGE_M[1]),
+                                          DEPTH_GRID))
 
 
 @dataclass(frozen=True)
@@ -71,27 +79,49 @@ def place_by_projection(joints_rel: np.ndarray, landmarks_px: np.ndarray,
         intrinsics: the camera's.
 
     """
-    matrix = torch.as_tensor(intrinsics.matrix(), dtype=torch.float64)
-    joints = torch.as_tensor(joints_rel, dtype=torch.float64)
-    pixels = torch.as_tensor(landmarks_px, dtype=torch.float64)
-    low, high = np.log(DEPTH_RANGE_M[0]), np.log(DEPTH_RANGE_M[1])
-    depths = torch.exp(torch.linspace(low, high, DEPTH_GRID, dtype=torch.float64))
-    for _ in range(DEPTH_REFINEMENTS + 1):
+    joints = np.asarray(joints_rel, dtype=np.float64)
+    pixels = np.asarray(landmarks_px, dtype=np.float64).T[..., None]  # (2, 21, 1): u, v rows
+    lateral_joints = joints[:, :2].T[..., None]
+    focal = np.array([intrinsics.fx, intrinsics.fy])[:, None, None]
+    centre = np.array([intrinsics.cx, intrinsics.cy])[:, None, None]
+    centred = pixels - centre
+    depths = _FIRST_DEPTHS
+    for _ in range(DEPTH_REFINEMENTS + 1):  # arrays (2, 21, depths): x and y, joint, depth
         count = len(depths)
-        lateral = solve_lateral_translation(joints.expand(count, -1, -1),
-                                            pixels.expand(count, -1, -1), depths,
-                                            matrix.expand(count, -1, -1))
-        shifts = torch.cat([lateral, depths[:, None]], dim=1)
-        placed = joints[None] + shifts[:, None]
-        z = placed[..., 2].clamp_min(1e-9)
-        projected = torch.stack([matrix[0, 0] * placed[..., 0] / z + matrix[0, 2],
-                                 matrix[1, 1] * placed[..., 1] / z + matrix[1, 2]], dim=-1)
-        errors = (projected - pixels).norm(dim=-1).mean(dim=-1)
+        z = joints[:, 2:] + depths
+        lateral = _lateral_translation(lateral_joints, z, centred, focal)
+        projected = focal * (lateral_joints + lateral[:, None]) / np.maximum(z, 1e-9) + centre
+        offsets = projected - pixels
+        errors = np.hypot(offsets[0], offsets[1]).mean(axis=0)
         best = int(errors.argmin())
+        shift = np.array([lateral[0, best], lateral[1, best], depths[best]])
         step = (depths[min(best + 1, count - 1)] - depths[max(best - 1, 0)]) / 2
-        depths = torch.linspace(float(depths[best] - step), float(depths[best] + step),
-                                DEPTH_GRID, dtype=torch.float64).clamp_min(DEPTH_RANGE_M[0])
-    return shifts[best].numpy(), float(errors[best])
+        depths = np.maximum(np.linspace(depths[best] - step, depths[best] + step, DEPTH_GRID),
+                            DEPTH_RANGE_M[0])
+    return shift, float(errors[best])
+
+
+def _lateral_translation(lateral_joints: np.ndarray, z: np.ndarray, centred: np.ndarray,
+                         focal: np.ndarray) -> np.ndarray:
+    """Return eq. 5's (t_x, t_y) as (2, N): one hand at N root depths.
+
+    ``solve_lateral_translation`` (``model/hand/lsp.py``) in numpy: joints at depths under
+    ``MIN_PROJECTION_DEPTH_M`` are left out, and a root depth with none left gets (0, 0).
+
+    Args:
+        lateral_joints: (2, J, 1) the translation-free joints' x and y, metres.
+        z: (J, N) the joints' depths ``X_z + t_z`` at each root depth, metres.
+        centred: (2, J, 1) their landmarks' u and v minus the principal point's.
+        focal: (2, 1, 1) f_x, f_y, pixels.
+
+    """
+    valid = z > MIN_PROJECTION_DEPTH_M
+    gain = focal / np.where(valid, z, 1.0)
+    weighted = valid * gain
+    numerator = np.einsum('cjn,cjn->cn', weighted, centred - gain * lateral_joints)
+    denominator = np.einsum('cjn,cjn->cn', weighted, gain)
+    solvable = denominator > _MIN_DENOMINATOR
+    return np.where(solvable, numerator / np.where(solvable, denominator, 1.0), 0.0)
 
 
 def lift_hand(side: int, landmarks_px: np.ndarray, joints_metric: np.ndarray,
@@ -120,12 +150,12 @@ def lift_hand(side: int, landmarks_px: np.ndarray, joints_metric: np.ndarray,
         params = ManoParams(fitted.global_orient[0], fitted.hand_pose[0], fitted.betas[0],
                             fitted.transl[0])
         rest = rest_joints(model, params.betas)
-    relative = _joints(model, params) - params.transl
+    relative = model_joints(model, params) - params.transl
     shift, error_px = place_by_projection(relative, landmarks_px, intrinsics)
     for _ in range(RAY_PASSES):  # bones towards the landmarks' rays at the depths found
         rays = _back_project(landmarks_px, (relative + shift)[:, 2], intrinsics)
         candidate = inverse_kinematics(model, rays, params.betas, rest)
-        moved = _joints(model, candidate) - candidate.transl
+        moved = model_joints(model, candidate) - candidate.transl
         moved_shift, moved_error = place_by_projection(moved, landmarks_px, intrinsics)
         if moved_error >= error_px:
             break
@@ -142,17 +172,3 @@ def _back_project(pixels: np.ndarray, depths: np.ndarray, intrinsics: Intrinsics
     x = (pixels[:, 0] - intrinsics.cx) / intrinsics.fx
     y = (pixels[:, 1] - intrinsics.cy) / intrinsics.fy
     return np.stack([x * depths, y * depths, depths], axis=1)
-
-
-def _joints(model: HandModel, params: ManoParams) -> np.ndarray:
-    """Return the model's (21, 3) joints for ``params``."""
-    reference = next(model.buffers())
-
-    def batch(value: np.ndarray) -> torch.Tensor:
-        return torch.as_tensor(np.asarray(value)[None], dtype=reference.dtype,
-                               device=reference.device)
-
-    with torch.no_grad():
-        out = model(batch(params.global_orient), batch(params.hand_pose), batch(params.betas),
-                    batch(params.transl))
-    return out.joints[0].detach().cpu().numpy().astype(np.float64)
