@@ -4,6 +4,7 @@ from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.data.mano_fit import fit_mano
 from infinihand_ros.data.mano_fit import ManoFitConfig
+from infinihand_ros.data.mano_fit import model_joints
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.synth.known_tracks import known_track
 import numpy as np
@@ -81,3 +82,20 @@ def test_a_warm_start_at_the_answer_stays_there() -> None:
     warm = fit_mano(model, joints[None], config=ManoFitConfig(iterations=1), initial=truth)
     assert np.nanmax(warm.joint_errors_mm) < 0.1 < np.nanmax(cold.joint_errors_mm)
     np.testing.assert_allclose(warm.betas[0], truth.betas, atol=1e-3)
+
+
+@pytest.mark.parametrize('side', [0, 1])
+def test_numpy_posed_skeleton_equals_the_model(side: int) -> None:
+    """model_joints' numpy posing of the float64 built-in skeleton is the model's forward pass.
+
+    The MediaPipe hand source lifts with float64 copies of the hand models (the numpy path).
+    """
+    model = BuiltinHandModel(side).to(torch.float64)
+    rng = np.random.default_rng(side)
+    for _ in range(5):
+        params = ManoParams(rng.normal(0, 1.0, 3), rng.normal(0, 0.5, (15, 3)),
+                            rng.normal(0, 1.0, 10), rng.normal(0, 0.3, 3))
+        with torch.no_grad():
+            expected = model(*(torch.as_tensor(value[None]) for value in (
+                params.global_orient, params.hand_pose, params.betas, params.transl))).joints[0]
+        np.testing.assert_allclose(model_joints(model, params), expected.numpy(), atol=1e-12)
