@@ -10,7 +10,9 @@ never waits, BA shares neither the interpreter lock nor thread settings with the
 failure or crash in BA only fails that call; results go to a callback and/or to ``poll``. A
 stream should use ``submit_selection``: the worker then plans each call when it starts, from
 its own correction track holding the earlier results that can still matter, so calls queued
-behind a running one still start from the poses it refined and keep its gauge.
+behind a running one still start from the poses it refined and keep its gauge. The worker also
+remembers which frames were in a failed call and in no successful call since
+(``failed_frame_ids``), so their results can say BA failed there.
 """
 
 from collections import deque
@@ -43,6 +45,9 @@ logger = logging.getLogger(__name__)
 
 #: A worker whose BA process died this many calls in a row, or could not be started, gives up.
 MAX_CONSECUTIVE_CRASHES = 3
+#: Frames of failed calls remembered by default (the newest; as many as the engine's pose track
+#: holds by default).
+FAILED_FRAMES_KEPT = 1024
 
 
 class BAWorkerError(InfiniHandError, RuntimeError):
@@ -146,11 +151,13 @@ class BundleAdjustmentWorker:
     run_function: RunFunction = staticmethod(run_request)
 
     def __init__(self, config: BAConfig,
-                 callback: Callable[[BAOutput], None] | None = None) -> None:
+                 callback: Callable[[BAOutput], None] | None = None,
+                 failed_frames_kept: int = FAILED_FRAMES_KEPT) -> None:
         """Start the thread and the BA process; each result goes to ``callback`` and ``poll``.
 
         The callback runs in the worker's thread; an exception it raises is logged and counted
-        in ``statistics.callback_errors``.
+        in ``statistics.callback_errors``. ``failed_frame_ids`` holds at most the newest
+        ``failed_frames_kept`` frame ids.
         """
         self.config = config
         self._callback = callback
@@ -163,6 +170,8 @@ class BundleAdjustmentWorker:
         self._counts = dict.fromkeys(('submitted', 'done', 'dropped', 'failed',
                                       'callback_errors'), 0)
         self._last_error: str | None = None
+        self._failed_frames: set[int] = set()
+        self._failed_frames_kept = failed_frames_kept
         self._fatal = False
         self._abandoning = False  # close() is killing the running call
         self._process: BAProcess | None = None
@@ -192,6 +201,15 @@ class BundleAdjustmentWorker:
     def failures(self) -> int:
         """Return the number of failed calls so far (also in ``statistics``)."""
         return self._counts['failed']
+
+    @property
+    def failed_frame_ids(self) -> frozenset[int]:
+        """Return the frames whose last BA call failed (the newest ``failed_frames_kept``).
+
+        A frame refined by a later call is no longer among them.
+        """
+        with self._wake:
+            return frozenset(self._failed_frames)
 
     @property
     def process_id(self) -> int | None:
@@ -391,6 +409,7 @@ class BundleAdjustmentWorker:
             return not isinstance(exc, BAProcessCrashError)
         with self._wake:
             self._counts['done'] += 1
+            self._failed_frames.difference_update(frame_ids)
         self._results.put(output)
         if self._callback is not None:
             try:
@@ -403,7 +422,7 @@ class BundleAdjustmentWorker:
         return True
 
     def _record_failure(self, frame_ids: list[int], exc: Exception) -> None:
-        """Log (with the BA process's traceback, if any) and count a failed call.
+        """Log (with the BA process's traceback, if any), count a failed call, keep its frames.
 
         A call that ``close`` abandoned is only noted: nobody waits for its result.
         """
@@ -416,3 +435,7 @@ class BundleAdjustmentWorker:
         with self._wake:
             self._counts['failed'] += 1
             self._last_error = f'{type(exc).__name__}: {exc}'
+            self._failed_frames.update(frame_ids)
+            excess = len(self._failed_frames) - self._failed_frames_kept
+            if excess > 0:
+                self._failed_frames.difference_update(sorted(self._failed_frames)[:excess])

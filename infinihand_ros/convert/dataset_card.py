@@ -32,7 +32,10 @@ FEATURE_NOTES: Final = {
     feat.CAMERA_FLAGS: ('bool', 'keyframe (entered the streaming memory); ba_corrected '
                         '(bundle adjustment moved the pose); tracked (the pose was measured in '
                         "the image, else the network's motion was used); reinitialised (the "
-                        'camera track restarted here: a discontinuity such as a cut)'),
+                        'camera track restarted here: a discontinuity such as a cut); '
+                        'ba_failed (the last bundle-adjustment call over this keyframe failed: '
+                        'the solver raised or its process died, so the pose lacks that '
+                        'refinement)'),
     feat.HAND_VALID: ('bool', 'the hand was detected and placed in the world; the other hand '
                       'features of an invalid hand hold the fill value'),
     feat.HAND_CONFIDENCE: ('[0, 1]', "the hand source's presence score (kept for invalid "

@@ -30,6 +30,8 @@ class EpisodeReport:
         camera_tracking: output frames whose camera pose was measured in the image
             ('tracked'), came from the network's motion ('predicted'), or where the camera
             track restarted ('reinitialised': a discontinuity).
+        ba_failed_frames: output frames whose last bundle-adjustment call failed
+            (``camera.flags`` ba_failed: their poses lack that refinement).
         source_gaps: output frames farther than ``max_source_gap_s`` from any source frame.
         max_source_gap_s: the largest distance of an output frame to its source frame.
         metric_scale: the engine's final metric-scale estimate.
@@ -50,6 +52,7 @@ class EpisodeReport:
     hands_valid: dict[str, int] = field(default_factory=dict)
     hands_invalid: dict[str, dict[str, int]] = field(default_factory=dict)
     camera_tracking: dict[str, int] = field(default_factory=dict)
+    ba_failed_frames: int = 0
     source_gaps: int = 0
     max_source_gap_s: float = 0.0
     metric_scale: float = 1.0
@@ -90,7 +93,8 @@ class EpisodeReport:
         if self.bundle_adjustment is not None:
             ba = self.bundle_adjustment
             out.append(f"  bundle adjustment: {ba.get('done', 0)} runs done, "
-                       f"{ba.get('failed', 0)} failed, {ba.get('dropped', 0)} dropped")
+                       f"{ba.get('failed', 0)} failed, {ba.get('dropped', 0)} dropped; "
+                       f'{self.ba_failed_frames} output frames flagged ba_failed')
         return out
 
 

@@ -241,6 +241,9 @@ class FrameResult:
         tracking: how the camera pose was found: 'tracked' (measured in the image),
             'predicted' (the network's motion: too little to track), 'reinitialised' (the
             track restarted here: a discontinuity, e.g. a cut) or 'static' (a fixed camera).
+        ba_failed: the last bundle-adjustment call over this keyframe failed (the solver
+            raised, the BA process died), so its pose lacks that refinement; set on the final
+            trajectory (``StreamingEngine.refined``), False on live results.
 
     """
 
@@ -256,6 +259,7 @@ class FrameResult:
     pose_version: int = 0
     hand_source: str = 'infinihand'
     tracking: str = 'predicted'
+    ba_failed: bool = False
 
     def __post_init__(self) -> None:
         sides = [hand.side for hand in self.hands]

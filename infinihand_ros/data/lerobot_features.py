@@ -13,8 +13,9 @@ Only ``observation.state``, ``action`` and the video start with ``observation.``
 that LeRobot policies take exactly those as inputs and targets; the other features are data.
 ``camera.flags`` marks keyframes (frames in the streaming memory), frames whose pose bundle
 adjustment corrected, frames whose pose was measured in the image (the per-frame tracker, or a
-fixed camera; otherwise the network's motion was used) and frames where the camera track
-restarted (a discontinuity, e.g. a cut between scenes).
+fixed camera; otherwise the network's motion was used), frames where the camera track
+restarted (a discontinuity, e.g. a cut between scenes) and keyframes whose last
+bundle-adjustment call failed (their poses lack that refinement).
 ``observation.state`` per hand: wrist position (3), wrist rotation as 6D (the first two columns
 of the MANO global orientation matrix, 6), the five fingertips (15).
 """
@@ -50,7 +51,8 @@ MANO_GLOBAL_ORIENT: Final = 'hands.mano.global_orient'
 MANO_HAND_POSE: Final = 'hands.mano.hand_pose'
 MANO_BETAS: Final = 'hands.mano.betas'
 CAMERA_FLAGS: Final = 'camera.flags'
-CAMERA_FLAG_NAMES: Final = ('keyframe', 'ba_corrected', 'tracked', 'reinitialised')
+CAMERA_FLAG_NAMES: Final = ('keyframe', 'ba_corrected', 'tracked', 'reinitialised',
+                            'ba_failed')
 SOURCE_STAMP: Final = 'source.stamp_ns'
 #: LeRobot's bookkeeping columns (shape (1,), no names).
 TIMESTAMP: Final = 'timestamp'
@@ -192,5 +194,6 @@ def frame_values(result: FrameResult, fill: float) -> tuple[dict[str, np.ndarray
                                                     atol=BA_CORRECTED_TOL)
     out[CAMERA_FLAGS] = np.array([result.is_keyframe, corrected,
                                   result.tracking in ('tracked', 'static'),
-                                  result.tracking == 'reinitialised'], dtype=np.float64)
+                                  result.tracking == 'reinitialised', result.ba_failed],
+                                 dtype=np.float64)
     return out, reasons

@@ -31,6 +31,9 @@ class BABackend(Protocol):
     def settle(self, track: PoseTrack, timeout_s: float | None = None) -> bool:
         """Wait for queued BA work (where the backend can), fold it in; return whether all done."""
 
+    def failed_frames(self) -> frozenset[int]:
+        """Return the frames whose last BA call failed (at least those the pose track holds)."""
+
     def statistics(self) -> dict[str, object]:
         """Return the backend's state and counters for diagnostics and reports."""
 

@@ -5,9 +5,11 @@ which runs BA in its own process, so its thread settings, CPU priority and crash
 and the stream goes on at once. Finished BA calls are handed to the pose track
 (``engine/pose_track.py``), which applies them as corrections; nothing here places hands or
 changes results. The track's correction history is pruned to what the pool and the track can
-still query, so memory and time stay bounded on an unbounded stream. Closing or resetting never
-waits long for BA: queued calls are dropped and a running one gets ``STOP_WAIT_S`` (a node
-stopped with Ctrl-C exits promptly); ``settle`` first to get every result.
+still query, so memory and time stay bounded on an unbounded stream; the frames of failed BA
+calls are remembered (as many as the pose track holds) so their results can say so. Closing or
+resetting never waits long for BA: queued calls are dropped and a running one gets
+``STOP_WAIT_S`` (a node stopped with Ctrl-C exits promptly); ``settle`` first to get every
+result.
 """
 
 from typing import Final
@@ -16,6 +18,7 @@ from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.keyframe_ba import KeyframeBA
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
+from infinihand_ros.ba.worker import FAILED_FRAMES_KEPT
 from infinihand_ros.engine.ba_backend import prune_corrections
 from infinihand_ros.engine.pose_track import PoseTrack
 
@@ -27,14 +30,23 @@ STOP_WAIT_S: Final = 0.5
 class InProcessBA:
     """The ``BABackend`` that runs BA in a background worker process of the engine's own."""
 
-    def __init__(self, config: BAConfig) -> None:
-        """Start the BA worker with an empty pool."""
+    def __init__(self, config: BAConfig, failed_frames_kept: int = FAILED_FRAMES_KEPT) -> None:
+        """Start the BA worker with an empty pool.
+
+        Args:
+            config: the BA settings.
+            failed_frames_kept: frames of failed calls remembered, the newest (the engine's
+                ``pose_track.capacity``: every frame whose pose it can still give).
+
+        """
         self.config = config
+        self.failed_frames_kept = failed_frames_kept
         self._start()
 
     def _start(self) -> None:
         """Start a new pool and worker."""
-        self.ba = KeyframeBA(self.config, BundleAdjustmentWorker(self.config))
+        self.ba = KeyframeBA(self.config, BundleAdjustmentWorker(
+            self.config, failed_frames_kept=self.failed_frames_kept))
         self.calls_done = 0
 
     def offer(self, keyframe: KeyframeInput) -> None:
@@ -59,6 +71,10 @@ class InProcessBA:
         idle = self.ba.worker.wait_idle(timeout_s)
         self.fold_in(track)
         return idle
+
+    def failed_frames(self) -> frozenset[int]:
+        """Return the frames whose last BA call failed (solver error, BA process died)."""
+        return self.ba.worker.failed_frame_ids
 
     def statistics(self) -> dict[str, object]:
         """Return the BA worker's state, its counters and last error, and the results folded in.

@@ -5,7 +5,9 @@ to its in-process backend; they wait in a bounded outbox until the caller's tran
 them (``take_keyframes``, after each push) and sends them. The transport hands back each BA
 result as ``Corrections`` (``receive``, from any thread); the engine folds them into the pose
 track before the next frame is posed, or when the caller asks between frames
-(``StreamingEngine.fold_in_ba``). The remote BA is never waited for.
+(``StreamingEngine.fold_in_ba``). The remote BA is never waited for. Its failed calls are not
+known here: the node publishes corrections of successful calls only, and its status counts
+failures without naming their frames.
 """
 
 from collections import deque
@@ -72,6 +74,10 @@ class RemoteBA:
         """Fold in what was received; the remote BA is not waited for (returns True)."""
         self.fold_in(track)
         return True
+
+    def failed_frames(self) -> frozenset[int]:
+        """Return no frames: the BA node's messages do not name the frames of failed calls."""
+        return frozenset()
 
     def statistics(self) -> dict[str, object]:
         """Return the counters (the transport reports the link's state)."""

@@ -102,7 +102,8 @@ class StreamingEngine:
         self._hand_source = build_hand_source(self.config.hands,
                                               self.model.hand_branch.hand_models)
         if ba_backend is None and self.config.bundle_adjustment is not None and not self.static:
-            ba_backend = InProcessBA(self.config.bundle_adjustment)
+            ba_backend = InProcessBA(self.config.bundle_adjustment,
+                                     self.config.pose_track.capacity)
         self._ba = ba_backend
         self._anchor_frames = self.model.geometry.config.memory.anchor_frames
         detection = self.config.detection
@@ -213,18 +214,21 @@ class StreamingEngine:
         Waits for the BA calls still queued (all of them with ``ba.worker.when_behind: wait``;
         at most ``timeout_s``), then gives every frame the pose the track holds now: all BA
         corrections, none blended in, and the final metric scale, with its hands and depth
-        placed again. Live results are what was known when each frame was published; these
-        are what is known at the end. Without BA only the scale changes. Frames older than the
-        track's ``pose_track.capacity`` are returned unchanged.
+        placed again, and ``ba_failed`` where the frame's last BA call failed. Live results are
+        what was known when each frame was published; these are what is known at the end.
+        Without BA only the scale changes. Frames older than the track's
+        ``pose_track.capacity`` are returned unchanged.
 
         Raises:
             EngineStateError: after ``close()`` or when another thread is inside the engine.
 
         """
         with self._exclusive():
+            failed: frozenset[int] = frozenset()
             if self._ba is not None:
                 self._ba.settle(self.pose_track, timeout_s)
-            return [self._on_final_trajectory(result) for result in results]
+                failed = self._ba.failed_frames()
+            return [self._on_final_trajectory(result, failed) for result in results]
 
     def fold_in_ba(self) -> None:
         """Fold finished bundle-adjustment results into the pose track now (between frames).
@@ -477,11 +481,13 @@ class StreamingEngine:
             return np.zeros(0)
         return depth_ratios(depth.model(), record.frame, hands)
 
-    def _on_final_trajectory(self, result: FrameResult) -> FrameResult:
+    def _on_final_trajectory(self, result: FrameResult,
+                             ba_failed: frozenset[int]) -> FrameResult:
         """Return ``result`` with the track's current (not live) pose, scale and hands.
 
         The output stage's identity and shared shape are kept; its smoothing (of the live
-        world-frame joints) is not, as the hands are placed again.
+        world-frame joints) is not, as the hands are placed again. The result is flagged
+        ``ba_failed`` when its frame is in ``ba_failed`` (those whose last BA call failed).
         """
         try:
             best = self.pose_track.best(result.frame_index, live=False)
@@ -489,7 +495,9 @@ class StreamingEngine:
             return result
         depth = (None if result.depth is None
                  else result.depth * (best.scale / result.metric_scale))
-        return dataclasses.replace(result, depth=depth, **self._posed(result.hands, best))
+        return dataclasses.replace(result, depth=depth,
+                                   ba_failed=result.frame_index in ba_failed,
+                                   **self._posed(result.hands, best))
 
     def _posed(self, hands: tuple[HandState, ...], best: TrackedPose) -> dict[str, object]:
         """Return the ``FrameResult`` fields that follow from a tracked pose (hands placed)."""

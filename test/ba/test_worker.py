@@ -163,12 +163,16 @@ def test_run_request_keeps_only_retained_features(keyframes: list) -> None:
 
 def test_failed_calls_are_counted_and_the_worker_lives_on(
         caplog: pytest.LogCaptureFixture) -> None:
-    """A selection without any trackable pixel fails cleanly; the next call still runs."""
-    worker = BundleAdjustmentWorker(BAConfig())
+    """A selection without any trackable pixel fails cleanly; the next call still runs.
+
+    The failed calls' frames are remembered, the newest ``failed_frames_kept`` of them.
+    """
+    worker = BundleAdjustmentWorker(BAConfig(), failed_frames_kept=2)
     worker.submit_selection(_blank_keyframes())
     worker.submit_selection(_blank_keyframes())
     worker.close()
     assert worker.failures == 2 and worker.poll() == []
+    assert worker.failed_frame_ids == {1, 2}
     assert 'no feature tracks between keyframes' in caplog.text
 
 
@@ -281,17 +285,22 @@ def test_callback_errors_are_counted_and_the_worker_lives_on(
 
 
 def test_after_a_failed_call_the_next_submit_works(keyframes: list) -> None:
-    """A failing selection is counted with its error; the next selection is accepted and runs."""
+    """A failing selection is counted with its error; the next selection is accepted and runs.
+
+    The failed call's frames stay in ``failed_frame_ids`` until a later call refines them.
+    """
     with BundleAdjustmentWorker(BAConfig()) as worker:
         worker.submit_selection(_blank_keyframes())
         while worker.pending():
             time.sleep(0.01)
         assert worker.statistics.failed == 1 and worker.state == 'idle'
         assert 'no feature tracks between keyframes' in worker.statistics.last_error
+        assert worker.failed_frame_ids == {0, 1, 2}
         worker.submit_selection(keyframes[:3])  # no 'submit after close()' here
     stats = worker.statistics
     assert (stats.submitted, stats.done, stats.failed) == (2, 1, 1)
     assert [output.frame_ids.tolist() for output in worker.poll()] == [[0, 2, 4]]
+    assert worker.failed_frame_ids == {1}
 
 
 def test_a_ba_process_that_keeps_dying_fails_the_worker_clearly(keyframes: list) -> None:

@@ -29,6 +29,8 @@ from infinihand_ros.convert.estimates_bag import HAND_FRAME_TOPIC
 from infinihand_ros.convert.estimates_bag import MARKERS_TOPIC
 from infinihand_ros.convert.video_writer import EpisodeVideoWriter
 from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.data.lerobot_features import CAMERA_FLAG_NAMES
+from infinihand_ros.data.lerobot_features import CAMERA_FLAGS
 from infinihand_ros.data.lerobot_features import CAMERA_POSE
 from infinihand_ros.data.lerobot_features import FRAME_FEATURES
 from infinihand_ros.engine.streaming_engine import StreamingEngine
@@ -120,13 +122,15 @@ def test_bags_convert_and_read_back(synth_bags: list[Path], tmp_path: Path) -> N
     reports = _report(output)
     assert [r['status'] for r in reports] == ['converted', 'converted']
     assert reports[0]['frames_in'] == 6 and reports[0]['frames_out'] == 6
-    flags = np.array(data['camera.flags'], dtype=bool)  # keyframe, ba, tracked, reinitialised
+    # keyframe, ba_corrected, tracked, reinitialised, ba_failed
+    flags = np.array(data['camera.flags'], dtype=bool)
     tracking = reports[0]['camera_tracking']
     first = flags[:6]
     assert tracking == {'tracked': int(first[:, 2].sum()),
                         'predicted': int((~first[:, 2] & ~first[:, 3]).sum()),
                         'reinitialised': int(first[:, 3].sum())}
     assert tracking['tracked'] >= 1  # the first frame at least: it defines the world
+    assert not flags[:, 4].any() and reports[0]['ba_failed_frames'] == 0  # BA is off
 
 
 @pytest.mark.slow
@@ -294,7 +298,11 @@ def test_conversion_waits_for_ba_instead_of_dropping(tmp_path: Path) -> None:
 
 def test_the_dataset_holds_the_final_trajectory(synth_bags: list[Path], tmp_path: Path,
                                                 monkeypatch: pytest.MonkeyPatch) -> None:
-    """Every output frame's camera pose is the one ``StreamingEngine.refined`` returned."""
+    """Every output frame's camera pose and BA failure are the ones ``refined`` returned.
+
+    Frames 1 and 4 come back flagged ``ba_failed``: their ``camera.flags`` say so and the
+    episode's report counts them.
+    """
     refined_poses: list[np.ndarray] = []
     original = StreamingEngine.refined
 
@@ -304,7 +312,8 @@ def test_the_dataset_holds_the_final_trajectory(synth_bags: list[Path], tmp_path
             pose = CameraPose(result.camera_pose.rotation,
                               result.camera_pose.translation + [1.0, 0.0, 0.0])
             refined_poses.append(pose.matrix())
-            out.append(dataclasses.replace(result, camera_pose=pose))
+            out.append(dataclasses.replace(result, camera_pose=pose,
+                                           ba_failed=result.frame_index in (1, 4)))
         return out
 
     monkeypatch.setattr(StreamingEngine, 'refined', shifted)
@@ -316,3 +325,6 @@ def test_the_dataset_holds_the_final_trajectory(synth_bags: list[Path], tmp_path
     written = np.array(data.column(CAMERA_POSE).to_pylist()).reshape(-1, 4, 4)
     assert len(refined_poses) == len(written) == 6
     np.testing.assert_allclose(written, np.stack(refined_poses), atol=1e-6)
+    flags = np.array(data.column(CAMERA_FLAGS).to_pylist(), dtype=bool)
+    assert np.flatnonzero(flags[:, CAMERA_FLAG_NAMES.index('ba_failed')]).tolist() == [1, 4]
+    assert _report(output)[0]['ba_failed_frames'] == 2

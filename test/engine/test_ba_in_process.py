@@ -147,12 +147,24 @@ def _echo(request: BARequest, config: BAConfig, cache: FeatureCache) -> BAOutput
                     0, 0, 0, 0.1, 0.0)
 
 
+def _fail_with_frame_0(request: BARequest, config: BAConfig,
+                       cache: FeatureCache) -> BAOutput:
+    """Raise for a selection holding frame 0 (a solver error), else stand in like ``_echo``."""
+    if any(keyframe.frame_id == 0 for keyframe in request.keyframes):
+        raise RuntimeError('solver failed')
+    return _echo(request, config, cache)
+
+
 class _SlowWorker(BundleAdjustmentWorker):
     run_function = staticmethod(_sleep)
 
 
 class _EchoWorker(BundleAdjustmentWorker):
     run_function = staticmethod(_echo)
+
+
+class _FailingWorker(BundleAdjustmentWorker):
+    run_function = staticmethod(_fail_with_frame_0)
 
 
 def _plain_keyframe(index: int) -> KeyframeInput:
@@ -217,3 +229,32 @@ def test_settle_then_close_gets_every_ba_result_and_stops_at_once(
     stage.close()
     assert time.monotonic() - start < CLOSE_BOUND_S
     assert pid is not None and not _alive(pid)
+
+
+def test_frames_of_failed_calls_are_reported_until_a_later_call_refines_them(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Calls that raise leave their frames in ``failed_frames``; a later refinement clears one.
+
+    The pool (N=2, K=2) selects frames [0, 2], [0, 3], [2, 4], [3, 5]: the first two calls
+    fail, the last two refine frames 2 and 3 again, so only frame 0 stays failed.
+    """
+    monkeypatch.setattr(ba_in_process, 'BundleAdjustmentWorker', _FailingWorker)
+    config = BAConfig(pool=PoolConfig(trigger=2, stride=2),
+                      worker=WorkerConfig(when_behind='wait'))
+    stage = InProcessBA(config)
+    track = PoseTrack(PoseTrackConfig(), MetricScaleConfig(), config.corrections.blend_s)
+    try:
+        for index in range(6):
+            keyframe = _plain_keyframe(index)
+            track.add(index, keyframe.timestamp_ns, keyframe.T_world_cam)
+            stage.fold_in(track)
+            stage.offer(keyframe)
+            if index == 3:  # both failing calls are done, no later one has run
+                assert stage.settle(track, timeout_s=60.0)
+                assert stage.failed_frames() == {0, 2, 3}
+        assert stage.settle(track, timeout_s=60.0)
+        statistics = stage.statistics()
+        assert (statistics['done'], statistics['failed']) == (2, 2)
+        assert stage.failed_frames() == {0}
+    finally:
+        stage.close()

@@ -7,10 +7,16 @@ import time
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.config import PoolConfig
 from infinihand_ros.ba.config import WorkerConfig
+from infinihand_ros.ba.features import FeatureCache
+from infinihand_ros.ba.keyframe import BAOutput
+from infinihand_ros.ba.worker import BARequest
+from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import EngineStateError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
+from infinihand_ros.engine import ba_in_process
+from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
@@ -447,3 +453,40 @@ def test_refined_results_wait_for_ba_and_apply_every_correction(frames: list) ->
         for hand in after.hands:
             np.testing.assert_allclose(hand.joints_world,
                                        after.camera_pose.to_world(hand.joints_cam), atol=1e-9)
+
+
+def _fail_with_frame_0(request: BARequest, config: BAConfig, cache: FeatureCache) -> BAOutput:
+    """Raise for a selection holding frame 0 (a solver error), else return its initial poses."""
+    keyframes = request.keyframes
+    if any(keyframe.frame_id == 0 for keyframe in keyframes):
+        raise RuntimeError('solver failed')
+    return BAOutput(np.array([k.frame_id for k in keyframes]),
+                    np.array([k.timestamp_ns for k in keyframes]),
+                    np.stack([k.T_world_cam for k in keyframes]), request.T_world_cam,
+                    0, 0, 0, 0.0, 0.0)
+
+
+class _FailingWorker(BundleAdjustmentWorker):
+    run_function = staticmethod(_fail_with_frame_0)
+
+
+def test_refined_results_flag_the_frames_whose_last_ba_call_failed(
+        model, frames: list, monkeypatch: pytest.MonkeyPatch) -> None:
+    """refined() flags ``ba_failed`` on exactly the frames the backend reports; live never.
+
+    Keyframes 0, 1, 2, 4, 6 enter a pool (N=2, K=2) that selects [0, 2], [0, 4], [2, 6]: the
+    calls holding frame 0 fail and the last one refines frame 2 again, so 0 and 4 are flagged.
+    """
+    monkeypatch.setattr(ba_in_process, 'BundleAdjustmentWorker', _FailingWorker)
+    stage = InProcessBA(BAConfig(pool=PoolConfig(trigger=2, stride=2),
+                                 worker=WorkerConfig(when_behind='wait')))
+    with StreamingEngine(CONFIG, model, ba_backend=stage) as engine:
+        live = _run(engine, frames)
+        final = engine.refined(live, timeout_s=60.0)
+        statistics = engine.statistics['ba']
+        failed = stage.failed_frames()
+    assert [result.frame_index for result in live if result.is_keyframe] == [0, 1, 2, 4, 6]
+    assert (statistics['done'], statistics['failed']) == (1, 2)
+    assert failed == {0, 4}
+    assert not any(result.ba_failed for result in live)
+    assert [result.frame_index for result in final if result.ba_failed] == [0, 4]
