@@ -72,8 +72,8 @@ def parse_args(argv: list[str] | None) -> LiveDemoOptions:
     parser.add_argument('--rate', type=float, default=10.0, metavar='HZ',
                         help='images per second replayed into the node (default 10)')
     parser.add_argument('--ba', choices=BA_MODES, default=EngineSelection().bundle_adjustment,
-                        help="bundle adjustment: none, in_process (the engine's worker; the "
-                        "node's default) or node")
+                        help="bundle adjustment: none (the node's default), in_process (the "
+                        "engine's worker) or node")
     parser.add_argument('--seconds', type=float, default=0.0, metavar='S',
                         help='replay only the first S seconds of the bag (0: all of it)')
     parser.add_argument('--hand-source', choices=HAND_SOURCES, default=INFINIHAND,
