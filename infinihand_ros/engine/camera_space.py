@@ -18,6 +18,7 @@ from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.engine.camera_tracker import TrackingView
 from infinihand_ros.engine.frame_input import FrameMapping
+from infinihand_ros.engine.hands.detections import FrameDetections
 from infinihand_ros.engine.metric_scale import hand_depth_ratios
 from infinihand_ros.model.geometry_model import GeometryModel
 from infinihand_ros.model.geometry_model import GeometryOutput
@@ -54,9 +55,9 @@ class PreparedFrame:
     source_image: np.ndarray | None = None
     detections: Future | None = None
 
-    def found(self) -> tuple:
+    def found(self) -> FrameDetections:
         """Return what the hand source found in the frame (waits for it; empty without one)."""
-        return () if self.detections is None else tuple(self.detections.result())
+        return FrameDetections() if self.detections is None else self.detections.result()
 
 
 class FrameDepth:

@@ -442,7 +442,9 @@ class StreamingEngine:
             boxes = [frame.mapping.points_to_model(hand.box_xyxy.reshape(2, 2)).reshape(4)
                      for hand in record.hands]
             view = dataclasses.replace(record.view, hand_boxes=np.array(boxes).reshape(-1, 4))
-        track.add(frame.index, frame.timestamp_ns, record.T_raw, view)
+        state = track.add(frame.index, frame.timestamp_ns, record.T_raw, view)
+        if frame.found().scene_cut or state == 'reinitialised':
+            self._output.new_scene()
         to_ba = (self._ba is not None and frame.keyframe and frame.source_image is not None
                  and record.depth is not None)
         kept = record.depth is not None and frame.keyframe and (to_ba or self.config.depth_maps)

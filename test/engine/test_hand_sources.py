@@ -11,6 +11,7 @@ from infinihand_ros.data.keypoint_source import Detection2D
 from infinihand_ros.data.mano_fit import inverse_kinematics
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.config import HandsConfig
+from infinihand_ros.engine.hands.detections import FrameDetections
 from infinihand_ros.engine.hands.lift import lift_hand
 from infinihand_ros.engine.hands.lift import place_by_projection
 from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
@@ -95,7 +96,7 @@ def test_the_branch_source_drops_unconfident_hands() -> None:
     """infinihand: hands under hands.min_confidence are not output, and counted."""
     source = InfiniHandSource(HandsConfig(min_confidence=0.6))
     hands = (make_hand(LEFT, confidence=0.55), make_hand(RIGHT, confidence=0.9))
-    kept = source.camera_hands((), hands, K)
+    kept = source.camera_hands(FrameDetections(), hands, K)
     assert [hand.side for hand in kept] == [RIGHT]
     assert source.statistics()['dropped_confidence'] == 1
 
@@ -108,9 +109,9 @@ def test_the_guard_keeps_only_hands_mediapipe_confirms() -> None:
         seen = Detection2D(RIGHT, np.array([[5.0, 5.0], [45.0, 45.0]] * 10 + [[20.0, 20.0]]),
                            np.ones(21), 0.9, None)
         other_side = Detection2D(LEFT, seen.joints_2d, np.ones(21), 0.9, None)
-        assert source.camera_hands((seen,), (box_hand,), K) == (box_hand,)
-        assert source.camera_hands((other_side,), (box_hand,), K) == ()
-        assert source.camera_hands((), (box_hand,), K) == ()
+        assert source.camera_hands(FrameDetections((seen,)), (box_hand,), K) == (box_hand,)
+        assert source.camera_hands(FrameDetections((other_side,)), (box_hand,), K) == ()
+        assert source.camera_hands(FrameDetections(), (box_hand,), K) == ()
         assert source.statistics()['dropped_verify'] == 2
     finally:
         source.close()

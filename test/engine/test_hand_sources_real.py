@@ -166,6 +166,23 @@ def test_a_fixed_camera_with_mediapipe_hands_runs_no_geometry_where_intrinsics_a
         np.testing.assert_allclose([k.fx, k.fy, k.cx, k.cy], median, rtol=1e-12)
 
 
+@pytest.mark.slow
+def test_unrelated_photos_in_a_row_keep_each_photos_own_hands(stills: list) -> None:
+    """Every still is a new scene: the engine gives MediaPipe's sides and hand count per photo.
+
+    Without the cut, hand identity carried a hand's side into the next photo wherever a hand
+    of the other side had been (a phantom of the wrong side on the real stills).
+    """
+    source = _source()
+    try:
+        expected = [sorted(hand.side for hand in _still_hands(source, frame))
+                    for frame in stills]
+    finally:
+        source.close()
+    results = _run(stills, camera_motion='static')
+    assert [sorted(hand.side for hand in r.hands) for r in results] == expected
+
+
 def test_tracking_restarts_at_each_scene_cut_only(stills: list, crop_video: tuple) -> None:
     """Unrelated photos in a row are cuts (MediaPipe restarts); a moving crop video is not."""
     detector = MediaPipeDetector(HandsConfig(source='mediapipe'))

@@ -29,6 +29,15 @@ def test_a_flipped_label_is_undone_and_stamps_pass() -> None:
     assert [hand.side for hand in again.hands] == [RIGHT]
 
 
+def test_a_new_scene_keeps_the_label_at_the_same_pixels() -> None:
+    """After a cut, a hand where the old scene's was is a new hand: its own label stands."""
+    stage = OutputStage(OutputConfig(shape=ShapeConfig(enabled=False)), MODELS)
+    stage.apply(make_result(0, (make_hand(LEFT, (100, 200)),)))
+    stage.new_scene()
+    cut = stage.apply(make_result(33 * MS, (make_hand(RIGHT, (102, 200)),), index=1))
+    assert [hand.side for hand in cut.hands] == [RIGHT]
+
+
 def test_the_shared_shape_replaces_per_frame_betas_after_enough_samples() -> None:
     """After min_samples confident hands every hand of that side gets their mean betas."""
     stage = OutputStage(OutputConfig(shape=ShapeConfig(min_confidence=0.5, min_samples=2)),

@@ -26,6 +26,7 @@ from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.config import MEDIAPIPE
+from infinihand_ros.engine.hands.detections import FrameDetections
 from infinihand_ros.engine.hands.lift import lift_hand
 from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.mano.base import HandModel
@@ -87,20 +88,20 @@ class MediaPipeHandSource:
                        'dropped_duplicate': 0}
         self.reprojection_ratios: deque[float] = deque(maxlen=RATIOS_KEPT)
 
-    def detect(self, image: np.ndarray, frame_index: int) -> Sequence[Detection2D]:
-        """Run MediaPipe on the frame's source image."""
+    def detect(self, image: np.ndarray, frame_index: int) -> FrameDetections:
+        """Run MediaPipe on the frame's source image (and tell whether a scene starts)."""
         found = self._detector.detect(image, frame_index)
-        if self._detector.cut:  # a new scene: no warm start from the last one
-            self._previous.clear()
-        return found
+        return FrameDetections(tuple(found), self._detector.cut)
 
-    def camera_hands(self, detections: Sequence[Detection2D],
+    def camera_hands(self, detections: FrameDetections,
                      branch_hands: tuple[HandState, ...], intrinsics: Intrinsics
                      ) -> tuple[HandState, ...]:
         """Return the frame's lifted hands, at most one per side, confident enough."""
         self.counts['frames'] += 1
-        confident = [d for d in detections if d.confidence >= self.config.min_confidence]
-        self.counts['dropped_confidence'] += len(detections) - len(confident)
+        if detections.scene_cut:  # a new scene: no warm start from the last one
+            self._previous.clear()
+        confident = [d for d in detections.hands if d.confidence >= self.config.min_confidence]
+        self.counts['dropped_confidence'] += len(detections.hands) - len(confident)
         kept = one_per_side(confident)
         self.counts['dropped_duplicate'] += len(confident) - len(kept)
         hands = []

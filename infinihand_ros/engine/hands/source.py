@@ -20,11 +20,11 @@ from typing import Protocol
 
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
-from infinihand_ros.data.keypoint_source import Detection2D
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.config import INFINIHAND
+from infinihand_ros.engine.hands.detections import FrameDetections
 from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
 from infinihand_ros.mano.base import HandModel
@@ -40,10 +40,14 @@ class HandSource(Protocol):
     #: Whether ``detect`` needs each frame's source image.
     needs_image: bool
 
-    def detect(self, image: np.ndarray, frame_index: int) -> Sequence[Detection2D]:
-        """Look at a pushed frame's source image (RGB uint8); return what camera_hands needs."""
+    def detect(self, image: np.ndarray, frame_index: int) -> FrameDetections:
+        """Look at a pushed frame's source image (RGB uint8); return what camera_hands needs.
 
-    def camera_hands(self, detections: Sequence[Detection2D],
+        Called in the engine's detection thread, frame by frame in order; it must not change
+        what ``camera_hands`` reads (that runs on another thread, possibly a frame behind).
+        """
+
+    def camera_hands(self, detections: FrameDetections,
                      branch_hands: tuple[HandState, ...], intrinsics: Intrinsics
                      ) -> tuple[HandState, ...]:
         """Return the frame's camera-space hands (at most one per side) that count."""
@@ -71,11 +75,14 @@ class InfiniHandSource:
         self._detector = MediaPipeDetector(config) if config.verify else None
         self.counts = {'frames': 0, 'hands': 0, 'dropped_confidence': 0, 'dropped_verify': 0}
 
-    def detect(self, image: np.ndarray, frame_index: int) -> Sequence[Detection2D]:
+    def detect(self, image: np.ndarray, frame_index: int) -> FrameDetections:
         """Run MediaPipe for the guard (nothing without ``verify``)."""
-        return () if self._detector is None else self._detector.detect(image, frame_index)
+        if self._detector is None:
+            return FrameDetections()
+        found = self._detector.detect(image, frame_index)
+        return FrameDetections(tuple(found), self._detector.cut)
 
-    def camera_hands(self, detections: Sequence[Detection2D],
+    def camera_hands(self, detections: FrameDetections,
                      branch_hands: tuple[HandState, ...], intrinsics: Intrinsics
                      ) -> tuple[HandState, ...]:
         """Return the branch's hands that are confident enough (and verified, with the guard)."""
@@ -91,9 +98,9 @@ class InfiniHandSource:
         self.counts['hands'] += len(kept)
         return tuple(kept)
 
-    def _verified(self, hand: HandState, detections: Sequence[Detection2D]) -> bool:
+    def _verified(self, hand: HandState, detections: FrameDetections) -> bool:
         """Return whether MediaPipe found a hand of the same side overlapping this one."""
-        for found in detections:
+        for found in detections.hands:
             overlap = box_iou(landmark_box(found.joints_2d), hand.box_xyxy)
             if found.side == hand.side and overlap >= self.config.verify_min_iou:
                 return True

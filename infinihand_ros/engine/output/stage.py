@@ -4,6 +4,8 @@ The node, the converter and the evaluation all get the engine's results from her
 publish and write the same hands. Per result, in order: hand identity per side
 (``identity.py``), the shared shape per side (``shape.py``, when ``shape.enabled``), then
 smoothing of the world-frame joints (``smoothing.py``, with ``smoothing.mode: one_euro``).
+At a cut between scenes (``new_scene``) hands are not carried over: a hand in the new scene is
+not the old scene's hand at the same pixels.
 """
 
 from collections.abc import Sequence
@@ -38,6 +40,11 @@ class OutputStage:
             hands = tuple(self._shared_shape(hand) for hand in hands)
         hands = self.smoother.apply(hands, result.timestamp_ns)
         return replace(result, hands=hands)
+
+    def new_scene(self) -> None:
+        """Forget hand tracks and filter state at a cut (the shared shape is kept)."""
+        self.identity.reset()
+        self.smoother.reset()
 
     def reset(self) -> None:
         """Start a new stream: forget tracks, shape samples and filter state."""
