@@ -78,3 +78,17 @@ def test_gpu_check_runs_on_the_tiny_model_on_the_cpu(tmp_path: Path) -> None:
     assert figures['converted']['matched_tensors'] > 0
     step = figures['train_step']
     assert step['steps'] == 1 and step['step_seconds'] > 0 and math.isfinite(step['loss'])
+
+
+def test_synth_realism_reports_consistent_overall_figures() -> None:
+    """benchmarks/synth_realism.py runs MediaPipe on 4 synthetic frames; its counts agree."""
+    run = subprocess.run([sys.executable, str(BENCHMARKS / 'synth_realism.py'), '--seeds', '0',
+                          '--frames', '4', '--json'],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    overall = json.loads(run.stdout.strip().splitlines()[-1])['overall']
+    assert overall['frames'] == 4 and overall['visible'] > 0
+    assert 0 <= overall['found'] <= overall['found_any'] <= overall['visible']
+    assert overall['found_share'] == overall['found'] / overall['visible']
+    assert overall['pck'] is None or 0 <= overall['pck'] <= 1
+    assert overall['false_positives'] >= 0 and overall['mediapipe_ms_per_frame'] > 0
