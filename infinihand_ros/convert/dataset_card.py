@@ -14,6 +14,7 @@ from typing import Any, Final
 
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.data import lerobot_features as feat
+from infinihand_ros.engine.hands.config import MEDIAPIPE
 from infinihand_ros.model.io.bundled import resolve_checkpoint
 
 CARD_FILE: Final = 'README.md'
@@ -120,6 +121,12 @@ def _limitations(records: list[dict[str, Any]]) -> list[str]:
                     if 'name' in weights})
     lines = ['Estimates are model outputs, not measurements: check `hands.valid`, '
              '`hands.confidence` and the per-episode reports before training on them.']
+    if any(record.get('provenance', {}).get('hand_source') == MEDIAPIPE for record in records):
+        lines += ['', 'Episodes whose hands come from MediaPipe (`hand_source: mediapipe`): '
+                  "`hands.mano.betas` is the hand model's mean shape (zeros) unless the "
+                  "engine's `hands.refine_iterations` fitted the shape, and each hand's "
+                  'distance from the camera follows from its size in pixels and the '
+                  'intrinsics.']
     for name in names:
         try:
             card = (Path(resolve_checkpoint(name)) / CARD_FILE).read_text(encoding='utf-8')

@@ -8,6 +8,7 @@ from convert_builders import BASE_NS
 from convert_builders import fast_config
 from convert_builders import image_bag
 from convert_builders import PERIOD_NS
+from infinihand_ros.convert import dataset_card
 from infinihand_ros.convert.cli import EXIT_OK
 from infinihand_ros.convert.cli import EXIT_USAGE
 from infinihand_ros.convert.cli import main
@@ -115,3 +116,12 @@ def test_card_is_written_and_follows_the_dataset(tmp_path: Path) -> None:
     card = (output / CARD_FILE).read_text()
     assert '2 episodes, 7 frames at 10 fps' in card and str(second) in card
     assert not list(output.glob(f'.{CARD_FILE}.*'))
+
+
+def test_card_says_what_mediapipe_hands_lack() -> None:
+    """Episodes with MediaPipe hands: the card says their shape is the mean one; else not."""
+    said = 'Episodes whose hands come from MediaPipe'
+    mediapipe = [{'provenance': {'hand_source': 'mediapipe', 'weights': {}}}]
+    branch = [{'provenance': {'hand_source': 'infinihand', 'weights': {}}}]
+    assert any(said in line for line in dataset_card._limitations(mediapipe + branch))
+    assert not any(said in line for line in dataset_card._limitations(branch))
