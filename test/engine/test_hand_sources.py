@@ -9,6 +9,7 @@ from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.data.keypoint_source import Detection2D
 from infinihand_ros.data.mano_fit import inverse_kinematics
+from infinihand_ros.engine.hands import lift
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.detections import FrameDetections
@@ -18,6 +19,7 @@ from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
 from infinihand_ros.engine.hands.mediapipe_source import one_per_side
 from infinihand_ros.engine.hands.source import InfiniHandSource
 from infinihand_ros.mano.builtin import BuiltinHandModel
+from infinihand_ros.model.hand.lsp import solve_lateral_translation
 import numpy as np
 import pytest
 from result_builders import make_hand
@@ -69,6 +71,24 @@ def test_projection_search_matches_eq5_at_the_true_depth() -> None:
     shift, error = place_by_projection(joints - wrist, pixels, K)
     np.testing.assert_allclose(shift, wrist, atol=1e-3)
     assert error < 0.05
+
+
+def test_the_lifts_eq5_is_the_models() -> None:
+    """lift.py's numpy eq. 5 gives model/hand/lsp.py's (t_x, t_y), joints behind the camera too."""
+    rng = np.random.default_rng(7)
+    joints = rng.normal(0.0, 0.05, (21, 3))
+    pixels = rng.uniform(0.0, 300.0, (21, 2))
+    depths = np.array([-0.02, 0.01, 0.04, 0.3, 1.0, 2.5])  # the first: every joint behind
+    z = joints[:, 2:] + depths
+    got = lift._lateral_translation(joints[:, :2].T[..., None], z,
+                                    (pixels - [K.cx, K.cy]).T[..., None],
+                                    np.array([K.fx, K.fy])[:, None, None])
+    count = len(depths)
+    expected = solve_lateral_translation(
+        torch.as_tensor(joints).expand(count, -1, -1),
+        torch.as_tensor(pixels).expand(count, -1, -1), torch.as_tensor(depths),
+        torch.as_tensor(K.matrix()).expand(count, -1, -1))
+    np.testing.assert_allclose(got.T, expected.numpy(), atol=1e-12)
 
 
 def _detection(side: int, x: float, score: float = 0.9) -> Detection2D:
