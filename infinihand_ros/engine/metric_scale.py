@@ -32,6 +32,9 @@ class MetricScaleConfig:
         initial: scale reported until then (1.0: the model's own units).
         min_ratio: ratios below this are rejected as outliers.
         max_ratio: ratios above this are rejected as outliers.
+        sample_interval: once ``min_samples`` ratios are held (the warm-up), the engine takes a
+            frame's hands as samples on every this-many-th frame and on frames whose depth it
+            computes anyway (the depth head runs only where a depth is used); 1: every frame.
 
     """
 
