@@ -1,8 +1,8 @@
 """Capsule hands: capsules around a skeleton, their joint radii and analytic ray-capsule hits.
 
 A capsule is the set of points within ``radius`` of a segment (a cylinder with two hemispherical
-caps). A hand is its 20 bones plus a few capsules across the palm and the thumb web, so that it
-reads as a hand rather than a stick figure. Rays are those of pixels in the OpenCV optical camera
+caps). A hand is its 20 bones plus a few capsules across the palm, the thumb web and the thenar
+eminence, so that it reads as a hand rather than a stick figure. Rays are those of pixels in the OpenCV optical camera
 frame, ``(x, y, 1)`` (not normalised), so a ray parameter is directly the z depth. The built-in
 hand's surface is this one: the synthetic renderer draws it and the annotation masks of
 ``data/hand_masks.py`` are cut from it.
@@ -23,6 +23,11 @@ THUMB_WEB: Final = (1, 5)
 PARALLEL_EPS: Final = 1e-12
 #: Capsule radius (m) at the wrist, MCP, PIP, DIP and tip joints of the mean hand.
 JOINT_RADII_M: Final = (0.024, 0.011, 0.0095, 0.0085, 0.0075)
+#: The thumb is thicker: radius (m) at its CMC, MCP, IP joints and tip.
+THUMB_RADII_M: Final = (0.016, 0.0125, 0.011, 0.0095)
+#: The thenar eminence: a capsule from the wrist to the thumb's MCP, this thick (m).
+THENAR: Final = (0, 2)
+THENAR_RADIUS_M: Final = 0.014
 
 
 @dataclass(frozen=True)
@@ -55,7 +60,7 @@ def joint_radii(betas: np.ndarray) -> np.ndarray:
     overall size, ``exp(0.05 * beta_0)``.
     """
     size = float(np.exp(0.05 * np.asarray(betas, np.float64)[0]))
-    return np.array([JOINT_RADII_M[0]] + list(JOINT_RADII_M[1:]) * 5) * size
+    return np.array([JOINT_RADII_M[0], *THUMB_RADII_M, *list(JOINT_RADII_M[1:]) * 4]) * size
 
 
 def hand_capsules(joints: np.ndarray,
@@ -86,6 +91,9 @@ def hand_capsules(joints: np.ndarray,
     starts.append(joints[THUMB_WEB[0]])
     ends.append(joints[THUMB_WEB[1]])
     caps_r.append(0.5 * (radii[THUMB_WEB[0]] + radii[THUMB_WEB[1]]))
+    starts.append(joints[THENAR[0]])
+    ends.append(joints[THENAR[1]])
+    caps_r.append(THENAR_RADIUS_M * radii[0] / JOINT_RADII_M[0])
     return np.array(starts), np.array(ends), np.array(caps_r)
 
 

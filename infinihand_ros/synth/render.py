@@ -1,12 +1,18 @@
-"""Fast z-buffer renderer of a synthetic scene and two capsule hands (numpy + OpenCV, one core).
+"""Fast z-buffer renderer of a synthetic scene, two capsule hands and their arms (numpy + OpenCV).
 
 Scene surfaces are planar textured quads: each front-facing quad is clipped against the near plane,
 its texture is warped into the bounding rectangle of its projection with one
 ``cv2.warpPerspective`` (plane-to-image homography), and its inverse depth, an affine function of
-the pixel (u, v) on a plane, is z-tested against an inverse-depth buffer inside its polygon. Hands
-are capsules (bones, plus palm fillers) intersected analytically with the pixel rays of each
-capsule's projected bounding box, Lambert-shaded from the capsule normal and z-tested in the same
-buffer, so hands occlude each other and are occluded by the table and boxes.
+the pixel (u, v) on a plane, is z-tested against an inverse-depth buffer inside its polygon.
+Hands are capsules (bones, plus palm fillers) intersected analytically with the pixel rays of each
+capsule's projected bounding box and z-tested in the same buffer, so hands occlude each other and
+are occluded by the table and boxes. An arm (bare forearm, sleeve, upper arm) can be attached to
+each hand; it occludes like a hand but is not part of the hand's mask.
+
+Skin is shaded from smoothed surface normals (the capsule normals averaged over a window about
+half a finger wide, so the capsules' seams do not show), with wrap-around diffuse light, a faint
+specular sheen and lighter palms; silhouettes are anti-aliased. Sensor effects follow: motion
+blur, Gaussian noise and JPEG compression.
 
 Pixel convention (OpenCV): pixel (column i, row j) shows the ray through image point
 (u, v) = (i, j), i.e. ``K^-1 [i, j, 1]`` in the OpenCV optical camera frame (x right, y down,
@@ -19,11 +25,14 @@ from typing import Final
 
 import cv2
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.hand_conventions import FINGER_JOINTS
+from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.raster import SUBPIXEL_BITS
 from infinihand_ros.core.validation import as_array
 from infinihand_ros.mano import capsules as caps
+from infinihand_ros.mano.capsules import PARALLEL_EPS
 from infinihand_ros.synth.scene import Lighting
 from infinihand_ros.synth.scene import Scene
 import numpy as np
@@ -31,19 +40,69 @@ from scipy.special import ndtri
 
 #: Number of noise levels (one random byte per pixel and channel picks a Gaussian quantile).
 NOISE_LEVELS: Final = 256
-#: Owner of pixels that show no hand capsule.
+#: Owner of pixels that show no hand or arm capsule.
 NO_CAPSULE: Final = -1
+#: Standard deviation (m at the surface) of the Gaussian that smooths the skin's normals.
+NORMAL_SMOOTHING_M: Final = 0.006
+#: Bounds (px) of that Gaussian's standard deviation in the image.
+NORMAL_SMOOTHING_PX: Final = (0.5, 8.0)
+#: Ambient occlusion of skin: neighbourhood (m, Gaussian sigma), depth below the local mean that
+#: darkens fully (m), and how much (fraction of the light).
+OCCLUSION_RADIUS_M: Final = 0.012
+OCCLUSION_DEPTH_M: Final = 0.012
+OCCLUSION_STRENGTH: Final = 0.6
+#: Fingertip joints (OpenPose order), thumb first.
+TIP_JOINTS: Final = tuple(joints[-1] for joints in FINGER_JOINTS)
+#: Nails: colour blended into the skin, extra sheen, where they start along the last bone
+#: (fraction from its base) and how far around the fingertip they reach (cosine to the nail's
+#: normal).
+NAIL_RGB: Final = (238, 208, 204)
+NAIL_BLEND: Final = 0.6
+NAIL_SHEEN: Final = 3.0
+NAIL_START: Final = 0.35
+NAIL_COS: Final = 0.55
+#: Wrap-around of the diffuse light on skin (0: Lambert; light reaches past the terminator).
+SKIN_WRAP: Final = 0.35
+#: Specular sheen of skin (fraction of the directional light) and its Blinn-Phong exponent.
+SKIN_SPECULAR: Final = 0.06
+SKIN_SHININESS: Final = 12.0
+#: Palms are lighter and pinker than the back of the hand: blend towards this colour.
+PALM_RGB: Final = (242, 196, 180)
+PALM_BLEND: Final = 0.3
+
+
+@dataclass(frozen=True)
+class ArmGeometry:
+    """The arm of a hand: bare forearm, sleeved forearm and upper arm, one capsule each.
+
+    Attributes:
+        points_world: (4, 3) wrist, sleeve hem, elbow and shoulder, world frame (m).
+        radii: (3,) radius of the bare forearm, the sleeved forearm and the upper arm (m).
+        sleeve_rgb: sleeve colour (R, G, B) in 0-255.
+
+    """
+
+    points_world: np.ndarray
+    radii: np.ndarray
+    sleeve_rgb: tuple[int, int, int]
+
+    def __post_init__(self) -> None:
+        as_array(self.points_world, 'ArmGeometry.points_world', (4, 3))
+        radii = as_array(self.radii, 'ArmGeometry.radii', (3,))
+        if np.any(radii <= 0):
+            raise InputError(f'ArmGeometry.radii must be positive metres, got {radii}')
 
 
 @dataclass(frozen=True)
 class HandGeometry:
-    """One hand as capsules around its skeleton.
+    """One hand as capsules around its skeleton, and optionally its arm.
 
     Attributes:
         side: 0 left, 1 right.
         joints_world: (21, 3) joints in the OpenPose order, world frame, metres.
         radii: (21,) capsule radius at each joint (m); a bone uses the mean of its two joints.
         skin_rgb: skin colour (R, G, B) in 0-255.
+        arm: the arm attached at the wrist (not part of the hand's mask); None for none.
 
     """
 
@@ -51,6 +110,7 @@ class HandGeometry:
     joints_world: np.ndarray
     radii: np.ndarray
     skin_rgb: tuple[int, int, int]
+    arm: ArmGeometry | None = None
 
     def __post_init__(self) -> None:
         if self.side not in SIDES:
@@ -73,6 +133,7 @@ class RenderOptions:
         motion_blur_px: length of a linear motion blur (pixels); below 1 disables it.
         motion_blur_angle_rad: direction of the blur in the image (0 = along +u).
         noise_seed: seed of the noise (draw it per frame from the sequence's generator).
+        jpeg_quality: JPEG compression quality (1-100) applied last; 0 disables it.
         near_m: near clipping plane (m).
 
     """
@@ -81,12 +142,16 @@ class RenderOptions:
     motion_blur_px: float = 0.0
     motion_blur_angle_rad: float = 0.0
     noise_seed: int = 0
+    jpeg_quality: int = 0
     near_m: float = 0.05
 
     def __post_init__(self) -> None:
         if self.noise_sigma < 0 or self.motion_blur_px < 0:
             raise InputError(f'RenderOptions: noise_sigma={self.noise_sigma} and motion_blur_px='
                              f'{self.motion_blur_px} must be >= 0')
+        if not 0 <= self.jpeg_quality <= 100:
+            raise InputError(
+                f'RenderOptions.jpeg_quality must be 0 (off) to 100, got {self.jpeg_quality}')
         if self.near_m <= 0:
             raise InputError(f'RenderOptions.near_m must be > 0 metres, got {self.near_m}')
 
@@ -235,34 +300,185 @@ def _draw_capsules(frame: _Frame, capsules: caps.CapsuleSet) -> np.ndarray:
     return owner
 
 
-def _shade_hands(frame: _Frame, capsules: caps.CapsuleSet, owner: np.ndarray,
-                 hands: Sequence[HandGeometry], lighting: Lighting) -> None:
-    """Colour the visible hand pixels: skin times Lambert shading from the capsule normals."""
+@dataclass(frozen=True)
+class _Bodies:
+    """Capsules of the hands (first ``num_hand``) and of their arms, with their colours.
+
+    Attributes:
+        capsules: camera-frame capsules, hand capsules first.
+        num_hand: how many of them belong to hands (the rest are arms).
+        albedo: (N, 3) colour (RGB 0-255) of each capsule.
+        palm_normals: (N, 3) camera-frame unit palm normal of each hand capsule's hand (zeros
+            for arms).
+        nail_normals: (N, 3) camera-frame unit normal of the nail on a fingertip capsule (zeros
+            for the other capsules).
+
+    """
+
+    capsules: caps.CapsuleSet
+    num_hand: int
+    albedo: np.ndarray
+    palm_normals: np.ndarray
+    nail_normals: np.ndarray
+
+
+def _palm_normal(joints: np.ndarray, side: int) -> np.ndarray:
+    """Return the unit normal (3,) of a hand's palm side from its wrist and index, pinky MCPs."""
+    normal = np.cross(joints[5] - joints[0], joints[17] - joints[0])
+    normal *= -1.0 if side == LEFT else 1.0
+    return normal / max(np.linalg.norm(normal), PARALLEL_EPS)
+
+
+def _nail_normals(joints: np.ndarray, palm: np.ndarray) -> np.ndarray:
+    """Return the unit normals (5, 3) of the four fingers' nails (zeros for the thumb).
+
+    A finger flexes about the axis across the palm, so its last bone's back side is that bone
+    crossed with the axis, on the side of the back of the hand.
+    """
+    across = joints[5] - joints[17]
+    across /= max(np.linalg.norm(across), PARALLEL_EPS)
+    normals = np.zeros((len(TIP_JOINTS), 3))
+    reference = np.cross(joints[9] - joints[0], across)
+    sign = -1.0 if reference @ palm > 0 else 1.0
+    for row, tip in enumerate(TIP_JOINTS[1:], start=1):
+        normal = sign * np.cross(joints[tip] - joints[tip - 1], across)
+        normals[row] = normal / max(np.linalg.norm(normal), PARALLEL_EPS)
+    return normals
+
+
+def _bodies(frame: _Frame, hands: Sequence[HandGeometry]) -> _Bodies:
+    """Build the camera-frame capsules of the hands and arms, and their colours."""
+    to_cam = (lambda points: np.asarray(points, np.float64) @ frame.rot_cw.T + frame.t_cw)
+    joints = [to_cam(hand.joints_world) for hand in hands]
+    hand_set = caps.build_capsule_set(
+        [(j, np.asarray(hand.radii, np.float64), hand.side) for j, hand in zip(joints, hands)])
+    albedo: list[np.ndarray] = []
+    palms: list[np.ndarray] = []
+    nails: list[np.ndarray] = []
+    for j, hand in zip(joints, hands):
+        count = int(np.sum(hand_set.sides == hand.side))
+        palm = _palm_normal(j, hand.side)
+        albedo.append(np.tile(np.asarray(hand.skin_rgb, np.float64), (count, 1)))
+        palms.append(np.tile(palm, (count, 1)))
+        nail = np.zeros((count, 3))
+        # Bone capsules come first, bone i ending at joint i + 1.
+        nail[np.asarray(TIP_JOINTS) - 1] = _nail_normals(j, palm)
+        nails.append(nail)
+    arms = [hand for hand in hands if hand.arm is not None]
+    parts = [hand_set]
+    for hand in arms:
+        points = to_cam(hand.arm.points_world)
+        parts.append(caps.CapsuleSet(points[:3], points[1:], np.asarray(hand.arm.radii, float),
+                                     np.array([False, True, True]), np.ones(3, bool),
+                                     np.full(3, hand.side)))
+        albedo.append(np.array([hand.skin_rgb, hand.arm.sleeve_rgb, hand.arm.sleeve_rgb],
+                               np.float64))
+        palms.append(np.zeros((3, 3)))
+        nails.append(np.zeros((3, 3)))
+    capsules = caps.CapsuleSet(*(np.concatenate([getattr(part, name) for part in parts])
+                                 for name in ('starts', 'ends', 'radii', 'start_caps',
+                                              'end_caps', 'sides')))
+    stack = (lambda rows: np.concatenate(rows) if rows else np.zeros((0, 3)))
+    return _Bodies(capsules, len(hand_set.radii), stack(albedo), stack(palms), stack(nails))
+
+
+def _local_mean(values: np.ndarray, rows: np.ndarray, cols: np.ndarray,
+                sigma_px: float) -> np.ndarray:
+    """Gaussian-weighted mean (N, C) of values (N, C) at pixels (rows, cols) over their neighbours.
+
+    Normalised convolution: only the given pixels contribute, so the background does not enter
+    the mean at the silhouette.
+    """
+    y0, y1 = int(rows.min()), int(rows.max()) + 1
+    x0, x1 = int(cols.min()), int(cols.max()) + 1
+    channels = values.shape[1]
+    image = np.zeros((y1 - y0, x1 - x0, channels + 1), np.float32)
+    image[rows - y0, cols - x0, :channels] = values
+    image[rows - y0, cols - x0, channels] = 1.0
+    image = cv2.GaussianBlur(image, (0, 0), sigma_px, borderType=cv2.BORDER_CONSTANT)
+    picked = image[rows - y0, cols - x0].astype(np.float64)
+    return picked[:, :channels] / np.maximum(picked[:, channels:], PARALLEL_EPS)
+
+
+def _occlusion(z: np.ndarray, rows: np.ndarray, cols: np.ndarray, sigma_px: float) -> np.ndarray:
+    """Ambient light kept (N,) at skin pixels: those deeper than their surroundings get less.
+
+    A screen-space ambient occlusion: crevices between fingers, a palm behind curled fingers
+    and the far side of an occluding edge lie behind the local mean depth.
+    """
+    mean = _local_mean(z[:, None], rows, cols, sigma_px)[:, 0]
+    return 1.0 - OCCLUSION_STRENGTH * np.clip((z - mean) / OCCLUSION_DEPTH_M, 0.0, 1.0)
+
+
+def _shade_bodies(frame: _Frame, bodies: _Bodies, owner: np.ndarray, lighting: Lighting) -> None:
+    """Colour the visible hand and arm pixels (see the module docstring)."""
     rows, cols = np.nonzero(owner != NO_CAPSULE)
     if rows.size == 0:
         return
     ids = owner[rows, cols]
     z = 1.0 / frame.inv_depth[rows, cols].astype(np.float64)
     points = np.stack([frame.ray_x[cols] * z, frame.ray_y[rows] * z, z], axis=1)
-    normals = caps.surface_normals(points, capsules, ids)
+    normals = caps.surface_normals(points, bodies.capsules, ids)
+    px_per_m = frame.k[0, 0] / float(np.median(z))
+    sigma_px = float(np.clip(px_per_m * NORMAL_SMOOTHING_M, *NORMAL_SMOOTHING_PX))
+    normals = _local_mean(normals, rows, cols, sigma_px)
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), PARALLEL_EPS)
     # Row vectors: p_world = (p_cam - t_cw) @ rot_cw.
-    shade = lighting.shade((points - frame.t_cw) @ frame.rot_cw, normals @ frame.rot_cw)
-    skins = np.zeros((len(SIDES), 3))
-    for hand in hands:
-        skins[hand.side] = np.asarray(hand.skin_rgb, np.float64) * lighting.tint
-    colours = shade[:, None] * skins[capsules.sides[ids]]
+    shade = lighting.shade((points - frame.t_cw) @ frame.rot_cw, normals @ frame.rot_cw,
+                           wrap=SKIN_WRAP)
+    shade *= _occlusion(z, rows, cols, float(np.clip(px_per_m * OCCLUSION_RADIUS_M,
+                                                     *NORMAL_SMOOTHING_PX)))
+    light = frame.rot_cw @ lighting.direction_world
+    half = light - points / np.linalg.norm(points, axis=1, keepdims=True)
+    half /= np.maximum(np.linalg.norm(half, axis=1, keepdims=True), PARALLEL_EPS)
+    sheen = (SKIN_SPECULAR * lighting.diffuse
+             * np.clip(np.einsum('ij,ij->i', normals, half), 0.0, None) ** SKIN_SHININESS)
+    facing = np.clip(np.einsum('ij,ij->i', normals, bodies.palm_normals[ids]), 0.0, 1.0)
+    albedo = bodies.albedo[ids]
+    albedo += (PALM_BLEND * facing)[:, None] * (np.asarray(PALM_RGB, np.float64) - albedo)
+    nail = _on_nail(points, normals, bodies, ids)
+    albedo[nail] += NAIL_BLEND * (np.asarray(NAIL_RGB, np.float64) - albedo[nail])
+    sheen[nail] *= NAIL_SHEEN
+    colours = (shade[:, None] * albedo + 255.0 * sheen[:, None]) * lighting.tint
     frame.rgb[rows, cols] = np.clip(colours, 0, 255).astype(np.uint8)
+    _antialias(frame.rgb, owner != NO_CAPSULE, rows, cols)
 
 
-def _hand_masks(capsules: caps.CapsuleSet, owner: np.ndarray) -> np.ndarray:
-    """Visible pixels (2, H, W) bool of the left and right hands from the capsule owners."""
-    side_of = np.append(capsules.sides, -1)  # index NO_CAPSULE (-1) maps to side -1
-    pixel_side = side_of[owner]
+def _on_nail(points: np.ndarray, normals: np.ndarray, bodies: _Bodies,
+             ids: np.ndarray) -> np.ndarray:
+    """Return which skin pixels (N,) lie on a nail: the back of a fingertip's outer part."""
+    nail_normals = bodies.nail_normals[ids]
+    candidates = np.flatnonzero(np.einsum('ij,ij->i', normals, nail_normals) >= NAIL_COS)
+    starts = bodies.capsules.starts[ids[candidates]]
+    axes = bodies.capsules.ends[ids[candidates]] - starts
+    along = (np.einsum('ij,ij->i', points[candidates] - starts, axes)
+             / np.maximum(np.einsum('ij,ij->i', axes, axes), PARALLEL_EPS))
+    nail = np.zeros(len(ids), bool)
+    nail[candidates[along >= NAIL_START]] = True
+    return nail
+
+
+def _antialias(rgb: np.ndarray, covered: np.ndarray, rows: np.ndarray, cols: np.ndarray) -> None:
+    """Soften the silhouette of the covered pixels: blur a one-pixel band on both sides of it."""
+    height, width = covered.shape
+    y0, y1 = max(int(rows.min()) - 2, 0), min(int(rows.max()) + 3, height)
+    x0, x1 = max(int(cols.min()) - 2, 0), min(int(cols.max()) + 3, width)
+    region = covered[y0:y1, x0:x1].view(np.uint8)
+    kernel = np.ones((3, 3), np.uint8)
+    band = cv2.dilate(region, kernel) != cv2.erode(region, kernel)
+    blurred = cv2.GaussianBlur(rgb[y0:y1, x0:x1], (3, 3), 0.8)
+    rgb[y0:y1, x0:x1][band] = blurred[band]
+
+
+def _hand_masks(bodies: _Bodies, owner: np.ndarray) -> np.ndarray:
+    """Visible pixels (2, H, W) bool of the left and right hands (arms excluded)."""
+    side_of = np.append(bodies.capsules.sides[:bodies.num_hand], -1)
+    pixel_side = side_of[np.where((owner >= 0) & (owner < bodies.num_hand), owner, -1)]
     return np.stack([pixel_side == side for side in SIDES])
 
 
 def _degrade(rgb: np.ndarray, options: RenderOptions) -> np.ndarray:
-    """Apply motion blur and Gaussian noise to a uint8 image."""
+    """Apply motion blur, Gaussian noise and JPEG compression to a uint8 image."""
     if options.motion_blur_px >= 1.0:
         size = int(np.ceil(options.motion_blur_px)) | 1
         kernel = np.zeros((size, size), np.float32)
@@ -283,6 +499,10 @@ def _degrade(rgb: np.ndarray, options: RenderOptions) -> np.ndarray:
         table = np.round(quantiles * options.noise_sigma).astype(np.int16)
         noise_bytes = np.frombuffer(rng.bytes(rgb.size), np.uint8).reshape(rgb.shape)
         rgb = cv2.add(rgb, cv2.LUT(noise_bytes, table), dtype=cv2.CV_8U)
+    if options.jpeg_quality > 0:
+        bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
+        _, encoded = cv2.imencode('.jpg', bgr, [cv2.IMWRITE_JPEG_QUALITY, options.jpeg_quality])
+        rgb = cv2.cvtColor(cv2.imdecode(encoded, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
     return rgb
 
 
@@ -317,11 +537,9 @@ def render_frame(scene: Scene, K: np.ndarray, T_world_cam: np.ndarray, width: in
         raise InputError(f'hands: at most one hand per side, got sides {sides}')
     frame = _new_frame(k, pose, int(width), int(height), options.near_m)
     _draw_scene(frame, scene)
-    capsules = caps.build_capsule_set(
-        [(np.asarray(hand.joints_world, np.float64) @ frame.rot_cw.T + frame.t_cw,
-          np.asarray(hand.radii, np.float64), hand.side) for hand in hands])
-    owner = _draw_capsules(frame, capsules)
-    _shade_hands(frame, capsules, owner, hands, scene.lighting)
+    bodies = _bodies(frame, hands)
+    owner = _draw_capsules(frame, bodies.capsules)
+    _shade_bodies(frame, bodies, owner, scene.lighting)
     depth = np.full(frame.inv_depth.shape, np.inf, np.float32)
     np.divide(1.0, frame.inv_depth, out=depth, where=frame.inv_depth > 0)
-    return RenderOutput(_degrade(frame.rgb, options), depth, _hand_masks(capsules, owner))
+    return RenderOutput(_degrade(frame.rgb, options), depth, _hand_masks(bodies, owner))

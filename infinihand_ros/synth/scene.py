@@ -134,9 +134,13 @@ class Lighting:
     lamp: float
     tint: np.ndarray
 
-    def shade(self, points: np.ndarray, normals: np.ndarray) -> np.ndarray:
-        """Lambert shading factor (N,) of world points (N, 3) with unit normals (N, 3)."""
-        direct = np.clip(normals @ self.direction_world, 0.0, None)
+    def shade(self, points: np.ndarray, normals: np.ndarray, wrap: float = 0.0) -> np.ndarray:
+        """Shading factor (N,) of world points (N, 3) with unit normals (N, 3).
+
+        Lambert for ``wrap`` 0; a positive ``wrap`` lets the directional light reach past the
+        terminator, ``(n . l + wrap) / (1 + wrap)``, as light scattered under skin does.
+        """
+        direct = np.clip((normals @ self.direction_world + wrap) / (1.0 + wrap), 0.0, None)
         to_lamp = self.lamp_world - points
         dist = np.linalg.norm(to_lamp, axis=-1)
         lamp = np.clip(np.sum(normals * to_lamp, axis=-1) / dist, 0.0, None) / (1.0 + dist ** 2)

@@ -21,8 +21,10 @@ from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.mano_frames import transform_mano_params
 from infinihand_ros.core.raster import mask_box
 from infinihand_ros.mano.builtin import BuiltinHandModel
+from infinihand_ros.synth import arms
 from infinihand_ros.synth import camera_motion
 from infinihand_ros.synth import hand_motion
+from infinihand_ros.synth.render import ArmGeometry
 from infinihand_ros.synth.render import HandGeometry
 from infinihand_ros.synth.render import render_frame
 from infinihand_ros.synth.render import RenderOptions
@@ -47,6 +49,7 @@ class SynthConfig:
         noise_sigma: image noise standard deviation (uint8 units).
         motion_blur_px: length of the motion blur (px); 0 disables it.
         min_visible_px: a hand with fewer visible pixels is marked not visible.
+        jpeg_quality: JPEG compression of the rendered images (1-100, as a camera's); 0: none.
 
     """
 
@@ -57,6 +60,7 @@ class SynthConfig:
     noise_sigma: float = 2.0
     motion_blur_px: float = 0.0
     min_visible_px: int = 40
+    jpeg_quality: int = 90
 
     def __post_init__(self) -> None:
         if not 0.5 <= self.fps <= 120.0:
@@ -66,6 +70,8 @@ class SynthConfig:
                 f'image size must be within 32..4096 px, got {self.width}x{self.height}')
         if self.hands not in HAND_CHOICES:
             raise InputError(f'hands must be one of {sorted(HAND_CHOICES)}, got {self.hands!r}')
+        if not 0 <= self.jpeg_quality <= 100:
+            raise InputError(f'jpeg_quality must be 0 (none) to 100, got {self.jpeg_quality}')
         if self.noise_sigma < 0 or self.motion_blur_px < 0 or self.min_visible_px < 1:
             raise InputError(
                 'noise_sigma and motion_blur_px must be >= 0 and min_visible_px >= 1, got '
@@ -148,8 +154,10 @@ class SyntheticSequence:
                                         betas, skin)
             for side in HAND_CHOICES[config.hands])
         self.joints_scene = tuple(self._forward(track) for track in self.tracks)
+        self.arm_style = arms.sample_arm_style(rng)
         self._options = RenderOptions(noise_sigma=config.noise_sigma,
-                                      motion_blur_px=config.motion_blur_px)
+                                      motion_blur_px=config.motion_blur_px,
+                                      jpeg_quality=config.jpeg_quality)
 
     @staticmethod
     def _forward(track: hand_motion.HandTrack) -> np.ndarray:
@@ -179,9 +187,12 @@ class SyntheticSequence:
         if not 0 <= index < self.num_frames:
             raise InputError(f'frame index {index} outside 0..{self.num_frames - 1}')
         T_scene_cam = self.T_scene_cams[index]
-        geometries = [HandGeometry(side=t.side, joints_world=j[index], radii=t.radii,
-                                   skin_rgb=t.skin_rgb)
-                      for t, j in zip(self.tracks, self.joints_scene)]
+        style = self.arm_style
+        geometries = [
+            HandGeometry(side=t.side, joints_world=j[index], radii=t.radii, skin_rgb=t.skin_rgb,
+                         arm=ArmGeometry(arms.arm_points(j[index][0], T_scene_cam, t.side, style),
+                                         style.radii_m, style.sleeve_rgb))
+            for t, j in zip(self.tracks, self.joints_scene)]
         # Noise depends on (seed, index) only, so any frame renders the same in any order.
         noise_seed = int(np.random.SeedSequence([self.seed, index]).generate_state(1)[0])
         out = render_frame(self.scene, self.intrinsics.matrix(), T_scene_cam, self.config.width,

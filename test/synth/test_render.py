@@ -6,7 +6,9 @@ from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.mano import capsules as caps
+from infinihand_ros.synth import render
 from infinihand_ros.synth.camera_motion import sample_intrinsics
+from infinihand_ros.synth.render import ArmGeometry
 from infinihand_ros.synth.render import HandGeometry
 from infinihand_ros.synth.render import render_frame
 from infinihand_ros.synth.render import RenderOptions
@@ -281,9 +283,93 @@ def test_bad_inputs_raise_clear_errors(room: Scene) -> None:
 def test_hand_capsules_cover_bones_palm_and_thumb_web() -> None:
     hand = _flat_hand(RIGHT, [0.0, 0.0, 0.5])
     starts, ends, radii = caps.hand_capsules(hand.joints_world, hand.radii)
-    assert len(starts) == 20 + 3 * 3 + 1
+    assert len(starts) == 20 + 3 * 3 + 2  # bones, palm rows, thumb web, thenar
     capsule_set = caps.build_capsule_set([(hand.joints_world, hand.radii, RIGHT)])
     # Each distinct sphere is intersected once: fewer caps than 2 per capsule.
     assert capsule_set.start_caps.sum() + capsule_set.end_caps.sum() < 2 * len(starts)
     assert capsule_set.end_caps[:20].all()
     np.testing.assert_array_equal(capsule_set.sides, RIGHT)
+
+
+def _arm(hand: HandGeometry) -> ArmGeometry:
+    """Build an arm from the hand's wrist down the image (+y) and back towards the camera."""
+    wrist = hand.joints_world[0]
+    points = wrist + np.array([[0.0, 0.0, 0.0], [0.0, 0.08, 0.0], [0.0, 0.25, -0.05],
+                               [0.0, 0.4, -0.3]])
+    return ArmGeometry(points, np.array([0.027, 0.036, 0.045]), (90, 90, 140))
+
+
+def test_an_arm_occludes_like_a_hand_but_is_not_in_its_mask() -> None:
+    scene = _scene(_wall(3.0))
+    hand = _flat_hand(RIGHT, [0.0, -0.02, 0.5])
+    bare = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [hand], CLEAN)
+    armed = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT,
+                         [HandGeometry(hand.side, hand.joints_world, hand.radii, SKIN,
+                                       _arm(hand))], CLEAN)
+    mask, bare_mask = armed.hand_masks[RIGHT], bare.hand_masks[RIGHT]
+    assert not (mask & ~bare_mask).any()  # the arm never enters the hand's mask
+    covered = bare_mask & ~mask  # the forearm, thicker than the wrist, hides a little of it
+    assert covered.sum() < 0.1 * bare_mask.sum()
+    assert np.all(armed.depth[covered] < bare.depth[covered])
+    arm = (armed.depth < 2.9) & ~mask
+    assert arm.sum() > 500 and arm[-1].any()  # the arm leaves the image at the bottom
+    np.testing.assert_array_equal(armed.depth[mask], bare.depth[mask])
+
+
+def test_palm_and_nail_normals_follow_the_hand() -> None:
+    back_view = _flat_hand(RIGHT, [0.0, 0.0, 0.5]).joints_world  # palm faces away (+z)
+    palm = render._palm_normal(back_view, RIGHT)
+    np.testing.assert_allclose(palm, [0.0, 0.0, 1.0], atol=1e-9)
+    nails = render._nail_normals(back_view, palm)
+    np.testing.assert_allclose(nails[1:], np.tile([0.0, 0.0, -1.0], (4, 1)), atol=1e-9)
+    assert not nails[0].any()  # no nail normal for the thumb
+    curled = back_view.copy()
+    curled[8] = curled[7] + [0.0, 0.0, 0.025]  # index tip bent 90 degrees towards the palm
+    np.testing.assert_allclose(render._nail_normals(curled, palm)[1], [0.0, -1.0, 0.0],
+                               atol=1e-9)
+    mirrored = _flat_hand(LEFT, [0.0, 0.0, 0.5]).joints_world
+    np.testing.assert_allclose(render._palm_normal(mirrored, LEFT), [0.0, 0.0, 1.0], atol=1e-9)
+
+
+def test_nails_are_lighter_on_the_back_of_the_fingertips_only() -> None:
+    scene = _scene(_wall(3.0))
+    back = _flat_hand(RIGHT, [0.0, 0.02, 0.4])
+    out = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [back], CLEAN)
+    frame = render._new_frame(K, np.eye(4), WIDTH, HEIGHT, CLEAN.near_m)
+    bodies = render._bodies(frame, [back])
+    tips = back.joints_world[[8, 12, 16, 20]]
+    mids = 0.5 * (back.joints_world[[5, 9, 13, 17]] + back.joints_world[[6, 10, 14, 18]])
+    tip_px = (tips[:, :2] / tips[:, 2:] * K[0, 0] + K[:2, 2]).round().astype(int)
+    mid_px = (mids[:, :2] / mids[:, 2:] * K[0, 0] + K[:2, 2]).round().astype(int)
+    brightness = out.rgb.astype(float).sum(axis=2)
+    lighter = brightness[tip_px[:, 1], tip_px[:, 0]] - brightness[mid_px[:, 1], mid_px[:, 0]]
+    assert np.all(lighter > 20)
+    assert np.count_nonzero(bodies.nail_normals.any(axis=1)) == 4
+
+
+def test_wrap_lighting_reaches_past_the_terminator() -> None:
+    light = _lighting()
+    normals = np.array([light.direction_world, -light.direction_world])
+    points = np.zeros((2, 3))
+    lambert = light.shade(points, normals)
+    wrapped = light.shade(points, normals, wrap=0.5)
+    np.testing.assert_allclose(lambert, [light.ambient + light.diffuse, light.ambient])
+    assert wrapped[0] == pytest.approx(lambert[0])
+    sideways = np.cross(light.direction_world, [1.0, 0.0, 0.0])
+    sideways /= np.linalg.norm(sideways)
+    assert light.shade(points[:1], sideways[None], wrap=0.5)[0] > light.ambient
+
+
+def test_jpeg_compression_is_mild_and_validated(room: Scene) -> None:
+    pose, target = _room_view(room)
+    hands = _room_hands(pose, target)
+    clean = render_frame(room, K, pose, WIDTH, HEIGHT, hands, CLEAN)
+    jpeg = render_frame(room, K, pose, WIDTH, HEIGHT, hands, RenderOptions(noise_sigma=0.0,
+                                                                           jpeg_quality=90))
+    rmse = np.sqrt(np.mean((jpeg.rgb.astype(float) - clean.rgb.astype(float)) ** 2))
+    assert 0.0 < rmse < 8.0
+    np.testing.assert_array_equal(jpeg.hand_masks, clean.hand_masks)
+    with pytest.raises(InputError, match='jpeg_quality'):
+        RenderOptions(jpeg_quality=101)
+    with pytest.raises(InputError, match='ArmGeometry.radii'):
+        ArmGeometry(np.zeros((4, 3)), np.zeros(3), (0, 0, 0))
