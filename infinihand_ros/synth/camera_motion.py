@@ -19,6 +19,8 @@ from scipy.spatial.transform import Rotation
 #: Default image size (width, height) in pixels.
 DEFAULT_WIDTH: Final = 518
 DEFAULT_HEIGHT: Final = 378
+#: Horizontal field of view of the cameras (degrees): webcams to wide head-mounted cameras.
+FOV_RANGE_DEG: Final = (55.0, 95.0)
 #: Sinusoids summed per motion channel.
 NUM_SINUSOIDS: Final = 3
 #: Every sinusoid completes at least this many cycles over a sequence.
@@ -63,7 +65,7 @@ class CameraMotionConfig:
 
     """
 
-    eye_height_range_m: tuple[float, float] = (1.1, 1.5)
+    eye_height_range_m: tuple[float, float] = (1.05, 1.35)
     standoff_range_m: tuple[float, float] = (0.15, 0.35)
     path_length_range_m: tuple[float, float] = (0.4, 2.5)
     max_speed_mps: float = 0.6
@@ -105,7 +107,7 @@ class CameraMotion:
 
 def sample_intrinsics(rng: np.random.Generator, width: int = DEFAULT_WIDTH,
                       height: int = DEFAULT_HEIGHT,
-                      fov_range_deg: tuple[float, float] = (60.0, 110.0)) -> np.ndarray:
+                      fov_range_deg: tuple[float, float] = FOV_RANGE_DEG) -> np.ndarray:
     """Draw pinhole intrinsics: random horizontal FoV, square pixels, centred principal point.
 
     Args:

@@ -27,16 +27,16 @@ KEYFRAME_GAP_S: Final = (1.0, 2.2)
 #: Probabilities of the keyframe kinds (reach to the table, hover in view, rest by the body).
 KIND_PROBABILITIES: Final = {'grasp': 0.5, 'hover': 0.4, 'rest': 0.1}
 #: Horizontal distance from the head to a reach target on the table (m).
-REACH_M: Final = (0.15, 0.5)
+REACH_M: Final = (0.1, 0.4)
 #: Wrist height above the table top when grasping (m).
 GRASP_HEIGHT_M: Final = (0.08, 0.14)
 #: Hover point relative to the head: forward, sideways (per side), downwards (m).
-HOVER_FORWARD_M: Final = (0.22, 0.40)
+HOVER_FORWARD_M: Final = (0.2, 0.35)
 HOVER_SIDE_M: Final = (0.05, 0.22)
 #: Probability that a hover crosses the midline (towards the other hand), and how far (m).
 CROSS_PROBABILITY: Final = 0.15
 CROSS_SIDE_M: Final = (0.0, 0.12)
-HOVER_DOWN_M: Final = (0.15, 0.35)
+HOVER_DOWN_M: Final = (0.12, 0.3)
 #: Rest point relative to the head: sideways and downwards (m).
 REST_SIDE_M: Final = 0.25
 REST_DOWN_M: Final = 0.75

@@ -12,8 +12,10 @@ import cv2
 from infinihand_ros.core.errors import InputError
 import numpy as np
 
-#: Random colours: smallest HSV saturation and range of HSV value (brightness), in [0, 1].
+#: Random colours: smallest and (by default) largest HSV saturation and range of HSV value
+#: (brightness), in [0, 1]; indoor surfaces are mostly muted.
 MIN_SATURATION: Final = 0.05
+MAX_SATURATION: Final = 0.4
 VALUE_RANGE: Final = (0.35, 0.92)
 #: Smallest texture side in pixels.
 MIN_TEXTURE_PX: Final = 8
@@ -44,7 +46,8 @@ GLYPH_SCALE_PER_PX: Final = 0.05
 ACCENT_PROBABILITY: Final = 0.5
 
 
-def random_colour(rng: np.random.Generator, saturation_max: float = 0.7) -> np.ndarray:
+def random_colour(rng: np.random.Generator,
+                  saturation_max: float = MAX_SATURATION) -> np.ndarray:
     """Draw a random RGB colour (3,) float in [0, 255], not too dark and not fully saturated.
 
     Args:
