@@ -119,5 +119,7 @@ def test_one_hand_sequences_and_bad_settings() -> None:
         SynthConfig(hands='three')
     with pytest.raises(InputError, match='fps'):
         SynthConfig(fps=0.0)
+    with pytest.raises(InputError, match='jpeg_quality must be 0'):
+        SynthConfig(jpeg_quality=-1)
     with pytest.raises(InputError, match='frames must be >= 1'):
         SyntheticSequence(SMALL, 1, 0)
