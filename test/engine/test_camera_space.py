@@ -26,9 +26,14 @@ import torch
 
 #: Model units are metres / TRUE_SCALE: the scale the engine must recover.
 TRUE_SCALE = 2.5
-#: Joints lie inside the hand while depth maps see its skin, about a finger's radius nearer:
-#: on these sequences that biases the ratio up by 2-6 %.
-SCALE_TOLERANCE = 0.08
+#: Joints lie inside the hand while depth maps see its skin: a finger's radius nearer, or
+#: centimetres nearer where the back of the hand, a curled finger or an arm hides the joint. The
+#: median over a hand's joints is biased up by it: about 17 % with hands 0.3-0.5 m away (22 % on
+#: this sequence). A lower quantile of the joints lessens the bias on ground truth but made the
+#: held-out W-MPJPE worse with the bundled model's depth (87.5 -> 92.0 mm), so the median stays.
+SCALE_BIAS_RANGE = (0.97, 1.3)
+#: The camera translation then follows the recovered scale.
+SCALE_TOLERANCE = 0.3
 
 
 def _perfect_output(frames: list, mappings: list) -> CameraSpaceOutput:
@@ -82,8 +87,11 @@ def test_known_scale_and_world_hands_are_recovered() -> None:
         track.add(record.frame.index, record.frame.timestamp_ns, record.T_raw)
         ratios = depth_ratios(record.depth.model(), record.frame, record.hands)
         track.observe_scale(ratios, np.ones(len(ratios)))
-    assert track.scale == pytest.approx(TRUE_SCALE, rel=SCALE_TOLERANCE)
+    low, high = SCALE_BIAS_RANGE
+    assert low * TRUE_SCALE <= track.scale <= high * TRUE_SCALE
     truth = frames[-1].camera_pose.translation
+    np.testing.assert_allclose(track.best(11).camera_pose.translation,
+                               truth * track.scale / TRUE_SCALE, atol=1e-6)
     np.testing.assert_allclose(track.best(11).camera_pose.translation, truth,
                                atol=SCALE_TOLERANCE * np.linalg.norm(truth) + 1e-3)
     detected = 0
