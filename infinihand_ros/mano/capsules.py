@@ -2,8 +2,9 @@
 
 A capsule is the set of points within ``radius`` of a segment (a cylinder with two hemispherical
 caps). A hand is its 20 bones plus a few capsules across the palm, the thumb web and the thenar
-eminence, so that it reads as a hand rather than a stick figure. Rays are those of pixels in the OpenCV optical camera
-frame, ``(x, y, 1)`` (not normalised), so a ray parameter is directly the z depth. The built-in
+eminence, so that it reads as a hand rather than a stick figure. Rays are those of pixels in the
+OpenCV optical camera frame, ``(x, y, 1)`` (not normalised), so a ray parameter is directly the
+z depth. The built-in
 hand's surface is this one: the synthetic renderer draws it and the annotation masks of
 ``data/hand_masks.py`` are cut from it.
 """

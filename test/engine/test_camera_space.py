@@ -21,7 +21,6 @@ from infinihand_ros.model.infinihand_model import CameraSpaceOutput
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
 import numpy as np
-import pytest
 import torch
 
 #: Model units are metres / TRUE_SCALE: the scale the engine must recover.
