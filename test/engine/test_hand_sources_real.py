@@ -13,6 +13,8 @@ from infinihand_ros.core.hand_conventions import OPENPOSE_TO_MANO
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.hand_conventions import WRIST
 from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.hands.boxes import box_iou
+from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
@@ -21,6 +23,8 @@ from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.mano.kinematics import PARENTS_WITH_TIPS
 from infinihand_ros.synth.photo_streams import crop_stream
+from infinihand_ros.synth.photo_streams import hand_and_arm_patch
+from infinihand_ros.synth.photo_streams import pasted_stream
 import numpy as np
 import pytest
 from real_stills import require_stills
@@ -92,7 +96,15 @@ def crop_video(stills: list) -> tuple:
     centres = centre + np.stack([40 * np.sin(2 * np.pi * phase),
                                  25 * np.cos(2 * np.pi * phase)], axis=1)
     widths = np.clip(size * 4 * (1.0 + 0.5 * np.sin(np.pi * phase)), 160, 640)
-    return found[0].side, crop_stream(frame.rgb, frame.intrinsics, centres, widths)
+    frames = crop_stream(frame.rgb, frame.intrinsics, centres, widths)
+    return found[0].side, frames, _moved(found[0].joints_2d, frame.intrinsics, frames)
+
+
+def _moved(joints_2d: np.ndarray, intrinsics, frames: list) -> list[np.ndarray]:
+    """Return a photo's landmarks in each crop (exact: crops only shift and scale pixels)."""
+    centre = np.array([intrinsics.cx, intrinsics.cy])
+    return [(joints_2d - centre) * frame.intrinsics.fx / intrinsics.fx
+            + [frame.intrinsics.cx, frame.intrinsics.cy] for frame in frames]
 
 
 def _stream(frames: list, intrinsics: bool = True, **engine_settings: object
@@ -122,7 +134,7 @@ def test_a_crop_video_keeps_the_hand_in_place_with_one_identity(crop_video: tupl
     median 6 %, worst 30 % where the hand is about 50 px tall). The output stage keeps one side
     throughout.
     """
-    side, frames = crop_video
+    side, frames, _ = crop_video
     results = _run(frames)
     assert all(result.hand_source == 'mediapipe' for result in results)
     found = [result.hands for result in results if result.hands]
@@ -136,6 +148,73 @@ def test_a_crop_video_keeps_the_hand_in_place_with_one_identity(crop_video: tupl
     assert np.abs(sideways - centre[:2]).max() <= 0.03, sideways
 
 
+def _detected(frames: list, search_interval: int) -> list[list]:
+    """Return the MediaPipe detector's hands in each frame of one stream."""
+    detector = MediaPipeDetector(HandsConfig(source='mediapipe', scene_cut_distance=1.0,
+                                             search_interval=search_interval))
+    try:
+        return [list(detector.detect(frame.rgb, index)) for index, frame in enumerate(frames)]
+    finally:
+        detector.close()
+
+
+def test_one_hand_tracked_alone_finds_what_mediapipe_alone_finds(crop_video: tuple) -> None:
+    """The crop video (one hand), twice: found where MediaPipe alone finds it, as accurately.
+
+    Accuracy: the mean landmark distance, over the hand's size, to the photo's landmarks
+    moved into each crop. Tracked alone, the hand is never joined by a second one.
+    """
+    side, frames, truth = crop_video
+    frames, truth = frames * 2, truth * 2
+    errors = {}
+    for interval in (1, 3):
+        found = _detected(frames, interval)
+        assert all(len(hands) <= 1 or interval == 1 for hands in found), str(list(map(len, found)))
+        errors[interval] = np.array([min((np.linalg.norm(hand.joints_2d - joints, axis=1).mean()
+                                          / np.ptp(joints, axis=0).max()
+                                          for hand in hands if hand.side == side), default=np.inf)
+                                     for hands, joints in zip(found, truth)])
+    assert np.mean(np.isfinite(errors[1])) >= 0.9
+    assert np.mean(np.isfinite(errors[3][np.isfinite(errors[1])])) >= 0.95
+    shared = np.isfinite(errors[1]) & np.isfinite(errors[3])
+    assert np.median(errors[3][shared]) <= np.median(errors[1][shared]) + 0.01
+    assert np.mean(errors[3][shared]) <= np.mean(errors[1][shared]) + 0.01, (
+        errors[3][shared].mean(), errors[1][shared].mean())
+
+
+def test_a_second_hand_is_found_within_the_search_interval(stills: list) -> None:
+    """A real hand still in view; another photo's hand and arm enter at frame 10 and stay."""
+    detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
+    try:
+        background = next(frame for frame in stills
+                          if len(detector.detect(frame.rgb, 0)) == 1 and not detector.reset())
+        first = detector.detect(background.rgb, 0)[0]
+    finally:
+        detector.close()
+    patch = hand_and_arm_patch([frame.rgb for frame in stills if frame is not background])
+    assert patch is not None
+    height, width = background.rgb.shape[:2]
+    far_side = 0 if landmark_box(first.joints_2d)[0] > width / 2 else width - patch.shape[1]
+    assert patch.shape[1] < width / 2, 'the pasted hand must fit beside the first'
+    corners = [(far_side + (-2 if far_side else 2) * (index % 5), height - patch.shape[0])
+               for index in range(30)]
+    frames = [background] * 10 + pasted_stream(background.rgb, patch, corners,
+                                               background.intrinsics)
+    interval = 3
+    alone, searching = _detected(frames, 1), _detected(frames, interval)
+    counts = [len(hands) for hands in alone]
+    start = counts.index(2)  # MediaPipe alone finds the second hand on this frame and after
+    assert 10 <= start <= 20 and counts == [1] * start + [2] * (40 - start), counts
+    counts = [len(hands) for hands in searching]
+    later = counts[start + interval:]
+    assert counts[:10] == [1] * 10 and later == [2] * len(later), (start, str(counts))
+    box, size = landmark_box(first.joints_2d), np.ptp(first.joints_2d, axis=0).max()
+    for hands in searching:  # the first hand stays where the photo has it
+        same = [hand for hand in hands if box_iou(box, landmark_box(hand.joints_2d)) >= 0.3]
+        assert len(same) == 1
+        assert np.linalg.norm(same[0].joints_2d - first.joints_2d, axis=1).mean() <= 0.1 * size
+
+
 @pytest.mark.slow
 def test_a_fixed_camera_with_mediapipe_hands_runs_no_geometry_where_intrinsics_are_known(
         crop_video: tuple) -> None:
@@ -145,7 +224,7 @@ def test_a_fixed_camera_with_mediapipe_hands_runs_no_geometry_where_intrinsics_a
     frame). Without: the first ``static_intrinsics_frames`` frames predict them and their
     median holds for the rest.
     """
-    _, frames = crop_video
+    _, frames, _ = crop_video
     moving = _run(frames)
     fixed, statistics = _stream(frames, camera_motion='static')
     assert statistics['frames_without_geometry'] == len(frames)
@@ -211,7 +290,7 @@ def test_tracking_restarts_at_each_scene_cut_only(stills: list, crop_video: tupl
 @pytest.mark.slow
 def test_smoothing_steadies_the_crop_video(crop_video: tuple) -> None:
     """One-Euro smoothing lowers the frame-to-frame jitter of the world wrist on real pixels."""
-    _, frames = crop_video
+    _, frames, _ = crop_video
     smoothing = SmoothingConfig(mode='one_euro', min_cutoff_hz=0.5)
     base = load_engine_config()
 

@@ -34,6 +34,10 @@ class HandsConfig:
                                                 'are dropped.', 0.0, 1.0)
     min_tracking_confidence: float = parameter(0.8, 'MediaPipe re-detects a tracked hand whose '
                                                'landmark score falls below this.', 0.0, 1.0)
+    search_interval: int = parameter(
+        3, 'MediaPipe: with one hand tracked, look for a second hand on every this-many-th '
+        'frame only (its palm detector costs about as much as tracking a hand); 1: on every '
+        'frame, as MediaPipe alone does.', 1, 1000)
     refine_iterations: int = parameter(0, 'L-BFGS steps refining the MANO fit of each MediaPipe '
                                        'hand after the closed-form start (0: none).', 0, 1000)
     scene_cut_distance: float = parameter(

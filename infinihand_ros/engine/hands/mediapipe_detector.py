@@ -8,6 +8,14 @@ mirrored selfie image; on ordinary images its labels are swapped into ours, with
 MediaPipe (its models run at 192-256 px anyway) and the landmarks scaled back. At a cut between
 scenes (consecutive images whose hue-saturation histograms differ by more than
 ``hands.scene_cut_distance``) the tracking restarts, so no hand is carried into a new scene.
+
+MediaPipe's own video mode runs its palm detector on every frame on which it tracks fewer hands
+than it may report, so with one hand in view it pays for a detection and a tracking each frame.
+With ``hands.search_interval`` > 1 two one-hand graphs share the work: the first tracks a hand
+in the image; the second looks at the image with that hand blanked out, every frame while it
+tracks a second hand and every ``search_interval``-th frame otherwise (its palm detector runs
+only then). A hand the first graph loses from one frame to the next is looked for once more in
+the same frame, as the two-hand graph's detector would.
 """
 
 from collections.abc import Sequence
@@ -20,6 +28,8 @@ from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.data.keypoint_source import Detection2D
 from infinihand_ros.data.mediapipe_source import MediaPipeConfig
 from infinihand_ros.data.mediapipe_source import MediaPipeKeypointSource
+from infinihand_ros.engine.hands.boxes import box_iou
+from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
 import numpy as np
 
@@ -28,6 +38,10 @@ MAX_SIDE_PX: Final = 1280
 #: Histogram bins (hue, saturation) and the thumbnail width the scene-cut test uses.
 CUT_BINS: Final = (16, 16)
 CUT_THUMBNAIL_PX: Final = 160
+#: The tracked hand's box, grown by this share of its size per side, is blanked for the search.
+BLANK_MARGIN: Final = 0.25
+#: A searched hand overlapping the tracked one more than this (IoU) is the same hand.
+SAME_HAND_IOU: Final = 0.1
 
 
 def colour_histogram(image: np.ndarray) -> np.ndarray:
@@ -46,24 +60,44 @@ def histogram_distance(first: np.ndarray, second: np.ndarray) -> float:
     return float(cv2.compareHist(first, second, cv2.HISTCMP_BHATTACHARYYA))
 
 
+def blank_box(image: np.ndarray, box: np.ndarray, margin: float = BLANK_MARGIN) -> np.ndarray:
+    """Return a copy of ``image`` with ``box`` (x0, y0, x1, y1), grown, in its mean colour."""
+    height, width = image.shape[:2]
+    grow = margin * np.array([box[0] - box[2], box[1] - box[3], box[2] - box[0],
+                              box[3] - box[1]])
+    x0, y0, x1, y1 = np.round(box + grow).astype(int)
+    blanked = image.copy()
+    blanked[max(y0, 0):min(y1, height), max(x0, 0):min(x1, width)] = (
+        image.reshape(-1, image.shape[2]).mean(axis=0))
+    return blanked
+
+
 class MediaPipeDetector:
     """MediaPipe Hands in video mode (one stream; ``reset`` between streams)."""
 
     def __init__(self, config: HandsConfig) -> None:
         """Load MediaPipe (InputError naming the install line when it cannot be imported)."""
         self.config = config
-        self._settings = MediaPipeConfig(max_num_hands=2,
-                                         model_complexity=config.model_complexity,
-                                         min_detection_confidence=config.min_detection_confidence,
-                                         static_image_mode=False)
-        self._source = self._start()
+        searching = config.search_interval > 1
+        # MediaPipe as it is (two hands, its palm detector whenever fewer are tracked) ...
+        self._pair = None if searching else self._start(max_num_hands=2)
+        # ... or two one-hand graphs and an image-mode one (no state: looks again for a hand).
+        self._first = self._start(max_num_hands=1) if searching else None
+        self._second = self._start(max_num_hands=1) if searching else None
+        self._search = self._start(max_num_hands=1, static=True) if searching else None
+        self._had_hand = False  # the first graph found a hand in the last image
+        self._second_tracked = False  # the second graph follows a hand
+        self._since_search = 0
         self._histogram: np.ndarray | None = None
         self.scene_cuts = 0
         self.cut = False  # the last image followed a cut (tracking restarted)
 
-    def _start(self) -> MediaPipeKeypointSource:
-        return MediaPipeKeypointSource(self._settings,
-                                       self.config.min_tracking_confidence)
+    def _start(self, max_num_hands: int, static: bool = False) -> MediaPipeKeypointSource:
+        settings = MediaPipeConfig(max_num_hands=max_num_hands,
+                                   model_complexity=self.config.model_complexity,
+                                   min_detection_confidence=self.config.min_detection_confidence,
+                                   static_image_mode=static)
+        return MediaPipeKeypointSource(settings, self.config.min_tracking_confidence)
 
     def detect(self, image: np.ndarray, frame_index: int) -> Sequence[Detection2D]:
         """Return the hands in an RGB uint8 image, sides in our convention, source pixels."""
@@ -80,13 +114,33 @@ class MediaPipeDetector:
         small = image if scale == 1.0 else cv2.resize(
             image, (max(1, round(width * scale)), max(1, round(height * scale))),
             interpolation=cv2.INTER_AREA)
-        found = self._source.detect(small, frame_index)
+        found = self._track(small, frame_index)
         if scale != 1.0:
             factor = np.array([width / small.shape[1], height / small.shape[0]])
             found = [replace(hand, joints_2d=hand.joints_2d * factor) for hand in found]
         if self.config.mirrored:  # the source swapped MediaPipe's selfie labels: undo it
             found = [replace(hand, side=RIGHT if hand.side == LEFT else LEFT) for hand in found]
         return found
+
+    def _track(self, image: np.ndarray, frame_index: int) -> list[Detection2D]:
+        """Return MediaPipe's hands in ``image``, a second one searched for only at intervals."""
+        if self._pair is not None:
+            return self._pair.detect(image, frame_index)
+        found = self._first.detect(image, frame_index)
+        if not found and self._had_hand:  # lost since the last image: look once more
+            found = self._search.detect(image, frame_index)
+        self._had_hand = bool(found)
+        self._since_search += 1
+        if not found or not self._second_tracked and (
+                self._since_search < self.config.search_interval):
+            self._second_tracked &= bool(found)
+            return found
+        self._since_search = 0
+        box = landmark_box(found[0].joints_2d)
+        others = [hand for hand in self._second.detect(blank_box(image, box), frame_index)
+                  if box_iou(box, landmark_box(hand.joints_2d)) <= SAME_HAND_IOU]
+        self._second_tracked = bool(others)
+        return [*found, *others]
 
     def reset(self) -> None:
         """Forget the tracked hands and the last image (a new stream)."""
@@ -95,10 +149,19 @@ class MediaPipeDetector:
         self.cut = False
 
     def _restart(self) -> None:
-        """Restart MediaPipe's tracking."""
-        self._source.close()
-        self._source = self._start()
+        """Restart MediaPipe's tracking (the graphs that keep a state)."""
+        if self._pair is not None:
+            self._pair.close()
+            self._pair = self._start(max_num_hands=2)
+        else:
+            for graph in (self._first, self._second):
+                graph.close()
+            self._first, self._second = self._start(max_num_hands=1), self._start(max_num_hands=1)
+        self._had_hand = self._second_tracked = False
+        self._since_search = 0
 
     def close(self) -> None:
         """Release MediaPipe."""
-        self._source.close()
+        for graph in (self._pair, self._first, self._second, self._search):
+            if graph is not None:
+                graph.close()
