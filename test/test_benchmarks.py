@@ -34,13 +34,16 @@ def test_profile_times_every_stage_of_a_few_frames() -> None:
     assert figures['per_frame']['fps'] > 0
 
 
-def _error_sources():
-    """Import benchmarks/eval_error_sources.py (a script, not a package module)."""
-    spec = importlib.util.spec_from_file_location('eval_error_sources',
-                                                  BENCHMARKS / 'eval_error_sources.py')
+def _benchmark(name: str):
+    """Import benchmarks/<name>.py (a script, not a package module)."""
+    spec = importlib.util.spec_from_file_location(name, BENCHMARKS / f'{name}.py')
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+def _error_sources():
+    return _benchmark('eval_error_sources')
 
 
 def test_error_sources_summary_averages_sequences_and_frame_ranges() -> None:
@@ -92,3 +95,39 @@ def test_synth_realism_reports_consistent_overall_figures() -> None:
     assert overall['found_share'] == overall['found'] / overall['visible']
     assert overall['pck'] is None or 0 <= overall['pck'] <= 1
     assert overall['false_positives'] >= 0 and overall['mediapipe_ms_per_frame'] > 0
+
+
+def test_hand_sources_compare_on_the_hands_both_found() -> None:
+    """Two targets; one source finds both, the other one: the common set is that one hand."""
+    from infinihand_ros.eval.matching import EvalFrame
+    from infinihand_ros.eval.matching import HandPrediction
+    from infinihand_ros.eval.matching import HandTarget
+    from infinihand_ros.eval.metrics import camera_space_metrics
+    from infinihand_ros.eval.metrics import match_frames
+    from infinihand_ros.mano.builtin import canonical_joints
+    import numpy as np
+
+    sources = _benchmark('hand_sources_synthetic')
+    intrinsics = np.array([[500.0, 0, 320], [0, 500.0, 240], [0, 0, 1]])
+
+    def hand(kind: type, side: int, x: float, error_m: float = 0.0, **extra: object):
+        joints = canonical_joints(side) - canonical_joints(side)[0] + [x, 0.0, 0.5]
+        joints[1:] += error_m  # every joint but the wrist: root-relative error = error_m * sqrt(3)
+        pixels = joints[:, :2] / joints[:, 2:] * 500.0 + [320, 240]
+        return kind(side, joints, np.eye(3), np.r_[pixels.min(0), pixels.max(0)], **extra)
+
+    targets = [hand(HandTarget, 0, -0.1), hand(HandTarget, 1, 0.1)]
+    both = EvalFrame(intrinsics, 640, 480, targets,
+                     [hand(HandPrediction, 0, -0.1, 0.01, score=0.9),
+                      hand(HandPrediction, 1, 0.1, 0.01, score=0.9)])
+    one = EvalFrame(intrinsics, 640, 480, targets, [hand(HandPrediction, 1, 0.1, 0.002,
+                                                         score=0.9)])
+    first, second = match_frames([both]), match_frames([one])
+    common = [{t for t, _ in first[0].matched} & {t for t, _ in second[0].matched}]
+    assert common == [{1}]
+    for frame, matches, error in ((both, first, 0.01), (one, second, 0.002)):
+        kept = sources._common_frames([frame], matches, common)
+        assert [t.side for t in kept[0].targets] == [1] == [p.side for p in kept[0].predictions]
+        figures = camera_space_metrics(kept)
+        assert figures.num_missed == 0 and figures.num_matched == 1
+        assert figures.mp_p_mm == pytest.approx(error * np.sqrt(3) * 1000 * 20 / 21)
