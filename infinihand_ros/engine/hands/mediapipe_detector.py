@@ -11,11 +11,12 @@ scenes (consecutive images whose hue-saturation histograms differ by more than
 
 MediaPipe's own video mode runs its palm detector on every frame on which it tracks fewer hands
 than it may report, so with one hand in view it pays for a detection and a tracking each frame.
-With ``hands.search_interval`` > 1 two one-hand graphs share the work: the first tracks a hand
-in the image; the second looks at the image with that hand blanked out, every frame while it
-tracks a second hand and every ``search_interval``-th frame otherwise (its palm detector runs
-only then). A hand the first graph loses from one frame to the next is looked for once more in
-the same frame, as the two-hand graph's detector would.
+With ``hands.search_interval`` > 1 the work is split: where no hand is followed, MediaPipe in
+image mode detects up to two hands (its palm detector, as the video mode would); from the next
+frame a one-hand graph follows one of them (tracking only) and a second one-hand graph looks at
+the image with that hand blanked out, on every frame while it follows a second hand and on every
+``search_interval``-th frame otherwise (its palm detector runs only then). A hand the first
+graph loses is detected again in the same frame.
 """
 
 from collections.abc import Sequence
@@ -81,11 +82,12 @@ class MediaPipeDetector:
         searching = config.search_interval > 1
         # MediaPipe as it is (two hands, its palm detector whenever fewer are tracked) ...
         self._pair = None if searching else self._start(max_num_hands=2)
-        # ... or two one-hand graphs and an image-mode one (no state: looks again for a hand).
+        # ... or MediaPipe in image mode (no state) where no hand is followed, and two one-hand
+        # graphs following the hands it found.
+        self._search = self._start(max_num_hands=2, static=True) if searching else None
         self._first = self._start(max_num_hands=1) if searching else None
         self._second = self._start(max_num_hands=1) if searching else None
-        self._search = self._start(max_num_hands=1, static=True) if searching else None
-        self._had_hand = False  # the first graph found a hand in the last image
+        self._had_hand = False  # the last image had a hand: the first graph follows it
         self._second_tracked = False  # the second graph follows a hand
         self._since_search = 0
         self._histogram: np.ndarray | None = None
@@ -126,14 +128,14 @@ class MediaPipeDetector:
         """Return MediaPipe's hands in ``image``, a second one searched for only at intervals."""
         if self._pair is not None:
             return self._pair.detect(image, frame_index)
-        found = self._first.detect(image, frame_index)
-        if not found and self._had_hand:  # lost since the last image: look once more
+        found = self._first.detect(image, frame_index) if self._had_hand else []
+        if not found:  # nothing followed, or lost since the last image: detect in this one
             found = self._search.detect(image, frame_index)
-        self._had_hand = bool(found)
+            self._had_hand, self._second_tracked = bool(found), len(found) > 1
+            self._since_search = 0
+            return found
         self._since_search += 1
-        if not found or not self._second_tracked and (
-                self._since_search < self.config.search_interval):
-            self._second_tracked &= bool(found)
+        if not self._second_tracked and self._since_search < self.config.search_interval:
             return found
         self._since_search = 0
         box = landmark_box(found[0].joints_2d)
