@@ -8,6 +8,7 @@ the stream path, identity and smoothing are checked against a known answer on re
 from dataclasses import replace
 
 import cv2
+from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import OPENPOSE_TO_MANO
 from infinihand_ros.core.hand_conventions import RIGHT
@@ -100,7 +101,7 @@ def crop_video(stills: list) -> tuple:
     return found[0].side, frames, _moved(found[0].joints_2d, frame.intrinsics, frames)
 
 
-def _moved(joints_2d: np.ndarray, intrinsics, frames: list) -> list[np.ndarray]:
+def _moved(joints_2d: np.ndarray, intrinsics: Intrinsics, frames: list) -> list[np.ndarray]:
     """Return a photo's landmarks in each crop (exact: crops only shift and scale pixels)."""
     centre = np.array([intrinsics.cx, intrinsics.cy])
     return [(joints_2d - centre) * frame.intrinsics.fx / intrinsics.fx
@@ -166,14 +167,13 @@ def test_one_hand_tracked_alone_finds_what_mediapipe_alone_finds(crop_video: tup
     """
     side, frames, truth = crop_video
     frames, truth = frames * 2, truth * 2
-    errors = {}
-    for interval in (1, 3):
-        found = _detected(frames, interval)
-        assert all(len(hands) <= 1 or interval == 1 for hands in found), str(list(map(len, found)))
-        errors[interval] = np.array([min((np.linalg.norm(hand.joints_2d - joints, axis=1).mean()
-                                          / np.ptp(joints, axis=0).max()
-                                          for hand in hands if hand.side == side), default=np.inf)
-                                     for hands, joints in zip(found, truth)])
+    found = {interval: _detected(frames, interval) for interval in (1, 3)}
+    assert max(map(len, found[3])) == 1, str(list(map(len, found[3])))
+    errors = {interval: np.array([min((np.linalg.norm(hand.joints_2d - joints, axis=1).mean()
+                                       / np.ptp(joints, axis=0).max()
+                                       for hand in hands if hand.side == side), default=np.inf)
+                                  for hands, joints in zip(per_frame, truth)])
+              for interval, per_frame in found.items()}
     assert np.mean(np.isfinite(errors[1])) >= 0.9
     assert np.mean(np.isfinite(errors[3][np.isfinite(errors[1])])) >= 0.95
     shared = np.isfinite(errors[1]) & np.isfinite(errors[3])
@@ -182,15 +182,23 @@ def test_one_hand_tracked_alone_finds_what_mediapipe_alone_finds(crop_video: tup
         errors[3][shared].mean(), errors[1][shared].mean())
 
 
-def test_a_second_hand_is_found_within_the_search_interval(stills: list) -> None:
-    """A real hand still in view; another photo's hand and arm enter at frame 10 and stay."""
+def _one_hand_still(stills: list) -> tuple:
+    """Return the first photo where MediaPipe finds one hand, and that hand."""
     detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
     try:
-        background = next(frame for frame in stills
-                          if len(detector.detect(frame.rgb, 0)) == 1 and not detector.reset())
-        first = detector.detect(background.rgb, 0)[0]
+        for frame in stills:
+            detector.reset()
+            found = detector.detect(frame.rgb, 0)
+            if len(found) == 1:
+                return frame, found[0]
     finally:
         detector.close()
+    pytest.fail('MediaPipe finds one hand in none of the stills')
+
+
+def test_a_second_hand_is_found_within_the_search_interval(stills: list) -> None:
+    """A real hand still in view; another photo's hand and arm enter at frame 10 and stay."""
+    background, first = _one_hand_still(stills)
     patch = hand_and_arm_patch([frame.rgb for frame in stills if frame is not background])
     assert patch is not None
     height, width = background.rgb.shape[:2]
