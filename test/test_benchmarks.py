@@ -42,13 +42,9 @@ def _benchmark(name: str):
     return module
 
 
-def _error_sources():
-    return _benchmark('eval_error_sources')
-
-
 def test_error_sources_summary_averages_sequences_and_frame_ranges() -> None:
     """Placements average over sequences; frame ranges pool frames, skipping unscored ones."""
-    sources = _error_sources()
+    sources = _benchmark('eval_error_sources')
     nan = float('nan')
 
     def figures(w_mpjpe: float, errors: list[float]) -> dict:

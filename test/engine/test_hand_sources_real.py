@@ -79,26 +79,32 @@ def test_real_stills_hands_found_lifted_onto_their_landmarks(stills: list) -> No
     assert np.max(np.ptp(bones, axis=0) / bones.mean(axis=0)) <= 0.03
 
 
-@pytest.fixture(scope='module')
-def crop_video(stills: list) -> tuple:
-    """Return a 16-frame crop video (panning and zooming) around the hand of a one-hand photo."""
+def _one_hand_still(stills: list, min_confidence: float = 0.0) -> tuple:
+    """Return the first photo where MediaPipe finds one hand (this confident), and that hand."""
     detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
     try:
         for frame in stills:
             detector.reset()
             found = detector.detect(frame.rgb, 0)
-            if len(found) == 1 and found[0].confidence > 0.9:
-                break
+            if len(found) == 1 and found[0].confidence > min_confidence:
+                return frame, found[0]
     finally:
         detector.close()
-    centre = found[0].joints_2d.mean(axis=0)
-    size = np.ptp(found[0].joints_2d, axis=0).max()
+    pytest.fail('MediaPipe finds one hand in none of the stills')
+
+
+@pytest.fixture(scope='module')
+def crop_video(stills: list) -> tuple:
+    """Return a 16-frame crop video (panning and zooming) around the hand of a one-hand photo."""
+    frame, hand = _one_hand_still(stills, min_confidence=0.9)
+    centre = hand.joints_2d.mean(axis=0)
+    size = np.ptp(hand.joints_2d, axis=0).max()
     phase = np.linspace(0.0, 1.0, 16)
     centres = centre + np.stack([40 * np.sin(2 * np.pi * phase),
                                  25 * np.cos(2 * np.pi * phase)], axis=1)
     widths = np.clip(size * 4 * (1.0 + 0.5 * np.sin(np.pi * phase)), 160, 640)
     frames = crop_stream(frame.rgb, frame.intrinsics, centres, widths)
-    return found[0].side, frames, _moved(found[0].joints_2d, frame.intrinsics, frames)
+    return hand.side, frames, _moved(hand.joints_2d, frame.intrinsics, frames)
 
 
 def _moved(joints_2d: np.ndarray, intrinsics: Intrinsics, frames: list) -> list[np.ndarray]:
@@ -180,20 +186,6 @@ def test_one_hand_tracked_alone_finds_what_mediapipe_alone_finds(crop_video: tup
     assert np.median(errors[3][shared]) <= np.median(errors[1][shared]) + 0.01
     assert np.mean(errors[3][shared]) <= np.mean(errors[1][shared]) + 0.01, (
         errors[3][shared].mean(), errors[1][shared].mean())
-
-
-def _one_hand_still(stills: list) -> tuple:
-    """Return the first photo where MediaPipe finds one hand, and that hand."""
-    detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
-    try:
-        for frame in stills:
-            detector.reset()
-            found = detector.detect(frame.rgb, 0)
-            if len(found) == 1:
-                return frame, found[0]
-    finally:
-        detector.close()
-    pytest.fail('MediaPipe finds one hand in none of the stills')
 
 
 def test_a_second_hand_is_found_within_the_search_interval(stills: list) -> None:
