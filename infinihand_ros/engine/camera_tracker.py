@@ -12,7 +12,9 @@ tracked from the last tracked one. When the points are lost at once while the ne
 sharp as the reference (a cut to another scene, not motion blur), or for ``max_lost_frames`` in
 a row, the track restarts on that frame (``reinitialised``: the pose keeps the network's motion
 and the frame marks the discontinuity). The reference moves to the current frame once too few
-of its points are left.
+of its points are left: the points still held move with it (so the scene's structure, and with
+it the pose, is not re-measured from one depth map each time), rescaled to agree with the new
+frame's depth, and new corners away from them fill up to ``max_corners``.
 
 Everything runs on the model-input image (grey, with the model's depth and intrinsics for it),
 in the network's model units, so the metric scale and BA corrections apply on top unchanged.
@@ -204,7 +206,7 @@ class CameraTracker:
                 self._lost = 0
                 if inliers < max(self.config.refresh_fraction * reference.count,
                                  self.config.min_inliers):
-                    self._set_reference(view, T_raw, *self._lift(view))
+                    self._renew(reference, view, T_raw)
                 return TrackedFrame(T_raw, 'tracked', inliers)
         self._lost += 1
         had = len(reference.pixels)
@@ -272,9 +274,23 @@ class CameraTracker:
         reference.pixels = moved[keep]
         return reference.T_raw @ invert_transform(T_current_reference), len(inliers)
 
-    def _lift(self, view: TrackingView) -> tuple[np.ndarray, np.ndarray]:
+    def _renew(self, reference: _Reference, view: TrackingView, T_raw: np.ndarray) -> None:
+        """Make ``view`` (at ``T_raw``) the reference: the points held, then new corners."""
+        T_new_old = invert_transform(T_raw) @ reference.T_raw
+        kept = (reference.points.astype(np.float64) @ T_new_old[:3, :3].T
+                + T_new_old[:3, 3]).astype(np.float32)
+        points, pixels = self._lift(view, reference.pixels, self.config.max_corners - len(kept))
+        kept /= _depth_agreement(kept, view.depth(), reference.pixels)
+        self._set_reference(view, T_raw, np.concatenate([kept, points]),
+                            np.concatenate([reference.pixels, pixels]))
+
+    def _lift(self, view: TrackingView, taken: np.ndarray | None = None,
+              count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Return corners of ``view`` off the hands: (P, 3) camera points, (P, 2) pixels."""
         config = self.config
+        count = config.max_corners if count is None else count
+        if count <= 0:
+            return np.zeros((0, 3), np.float32), np.zeros((0, 2), np.float32)
         mask = np.zeros(view.gray.shape, dtype=np.uint8)
         x0, y0, x1, y1 = view.content_box
         mask[y0:y1, x0:x1] = 255
@@ -286,7 +302,10 @@ class CameraTracker:
             bx0, by0 = (np.floor(box[:2]) - margin).astype(int).clip(0)
             bx1, by1 = (np.ceil(box[2:]) + margin + 1).astype(int)
             mask[by0:min(by1, height), bx0:min(bx1, width)] = 0
-        corners = cv2.goodFeaturesToTrack(view.gray, config.max_corners, config.corner_quality,
+        for u, v in (np.zeros((0, 2)) if taken is None else taken):
+            cv2.circle(mask, (int(round(u)), int(round(v))),
+                       int(np.ceil(config.min_corner_distance_px)), 0, -1)
+        corners = cv2.goodFeaturesToTrack(view.gray, count, config.corner_quality,
                                           config.min_corner_distance_px, mask=mask)
         if corners is None:
             return np.zeros((0, 3), np.float32), np.zeros((0, 2), np.float32)
@@ -309,6 +328,22 @@ class CameraTracker:
                                      len(points), _sharpness(view.gray))
         self._last_gray = view.gray
         self._lost = 0
+
+
+def _depth_agreement(points: np.ndarray, depth: np.ndarray, pixels: np.ndarray) -> float:
+    """Return the median ratio of ``points``' depths to ``depth`` at their ``pixels`` (1: none).
+
+    The points kept from the last reference are divided by it, so that they agree with the
+    corners lifted from this frame's depth (the network's depth scale varies between frames).
+    """
+    height, width = depth.shape
+    rows = np.clip(np.round(pixels[:, 1]).astype(int), 0, height - 1)
+    cols = np.clip(np.round(pixels[:, 0]).astype(int), 0, width - 1)
+    measured = depth[rows, cols].astype(np.float64)
+    good = np.isfinite(measured) & (measured > 0) & (points[:, 2] > 0)
+    if not good.any():
+        return 1.0
+    return float(np.median(points[good, 2] / measured[good]))
 
 
 def _sharpness(gray: np.ndarray) -> float:

@@ -191,3 +191,29 @@ def test_a_hand_covering_most_of_the_image_is_never_tracked() -> None:
     assert states[5:10] == ['predicted'] * 5
     assert states[11:] == ['tracked'] * 9
     assert errors(result.T_raw, true_pose(19))[1] < 0.5
+
+
+def test_references_renewed_on_depth_of_varying_scale_keep_the_path() -> None:
+    """Points carried into a renewed reference agree with its depth, whatever that depth's scale.
+
+    Each frame's depth is off by its own factor, as the network's is; carried points that were
+    not rescaled to the new reference's depth would bend the path by several degrees.
+    """
+    def pan(index: int) -> np.ndarray:
+        angles = np.array([0.05, 0.5, 0.05]) * np.sin(index / 40.0)
+        return make_transform(Rotation.from_euler('xyz', angles).as_matrix(),
+                              np.array([0.006, -0.002, 0.002]) * index)
+
+    source = texture(0)
+    tracker = CameraTracker(TrackerConfig())
+    rng = np.random.default_rng(0)
+    renewals = 0
+    for index in range(120):
+        gray, depth = render(source, pan(index))
+        before = tracker._reference
+        result = tracker.track(view(gray, depth * rng.uniform(0.8, 1.25)), pan(index))
+        renewals += before is not None and tracker._reference is not before
+        translation_error, rotation_error = errors(result.T_raw, pan(index))
+        assert result.state == 'tracked'
+        assert rotation_error < 0.5 and translation_error < 0.05, index
+    assert renewals >= 2
