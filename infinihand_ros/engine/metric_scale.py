@@ -35,6 +35,9 @@ class MetricScaleConfig:
         sample_interval: once ``min_samples`` ratios are held (the warm-up), the engine takes a
             frame's hands as samples on every this-many-th frame and on frames whose depth it
             computes anyway (the depth head runs only where a depth is used); 1: every frame.
+        hand_depth_correction: every ratio is multiplied by this; it corrects a depth head that
+            places hands too far (> 1) or too near (< 1) relative to the rest of the scene.
+            None: the checkpoint's measured value (``scale_calibration.json``; 1 without one).
 
     """
 
@@ -44,8 +47,12 @@ class MetricScaleConfig:
     min_ratio: float = 1e-3
     max_ratio: float = 1e3
     sample_interval: int = 5
+    hand_depth_correction: float | None = None
 
     def __post_init__(self) -> None:
+        if self.hand_depth_correction is not None and not self.hand_depth_correction > 0:
+            raise ConfigError(f'metric_scale.hand_depth_correction must be > 0 or null, got '
+                              f'{self.hand_depth_correction}')
         if self.history < 1 or not 1 <= self.min_samples <= self.history:
             raise ConfigError(f'metric_scale: need history >= min_samples >= 1, got '
                               f'{self.history} and {self.min_samples}')

@@ -68,6 +68,8 @@ from infinihand_ros.engine.world_placement import place_in_world
 from infinihand_ros.model.geometry_model import cpu_bf16_supported
 from infinihand_ros.model.geometry_model import GeometryOutput
 from infinihand_ros.model.infinihand_model import CameraSpaceOutput
+from infinihand_ros.model.io.bundled import hand_depth_correction
+from infinihand_ros.model.io.bundled import resolve_checkpoint
 import numpy as np
 import torch
 
@@ -98,6 +100,7 @@ class StreamingEngine:
             raise ConfigError('engine.camera_motion: static takes no bundle-adjustment backend '
                               '(a fixed camera is the world frame)')
         self.model = model or build_model(self.config)
+        self._scale_correction = _scale_correction(self.config)
         self._output = OutputStage(self.config.output, self.model.hand_branch.hand_models)
         self._hand_source = build_hand_source(self.config.hands,
                                               self.model.hand_branch.hand_models)
@@ -156,6 +159,7 @@ class StreamingEngine:
                 'metric_scale_estimate': estimate.scale,
                 'metric_scale_uncertainty': estimate.uncertainty,
                 'metric_scale_state': self.pose_track.scale_state,
+                'metric_scale_correction': self._scale_correction,
                 'pose_version': self.pose_track.version,
                 'tracker': self.pose_track.tracker.statistics(),
                 'ba': None if self._ba is None else self._ba.statistics(),
@@ -481,7 +485,7 @@ class StreamingEngine:
                 depth.computed or depth_kept or self.pose_track.scale_state == 'warmup'
                 or record.frame.index % interval == 0):
             return np.zeros(0)
-        return depth_ratios(depth.model(), record.frame, hands)
+        return depth_ratios(depth.model(), record.frame, hands) * self._scale_correction
 
     def _on_final_trajectory(self, result: FrameResult,
                              ba_failed: frozenset[int]) -> FrameResult:
@@ -515,6 +519,15 @@ class StreamingEngine:
         checkpoint = self.config.model.checkpoint
         return (f'checkpoint {checkpoint}' if checkpoint is not None
                 else f'seeded untrained weights (seed {self.config.model.seed})')
+
+
+def _scale_correction(config: EngineConfig) -> float:
+    """Return the hand-depth correction of the metric scale: configured, or the checkpoint's."""
+    configured = config.metric_scale.hand_depth_correction
+    if configured is not None:
+        return configured
+    checkpoint = config.model.checkpoint
+    return 1.0 if checkpoint is None else hand_depth_correction(resolve_checkpoint(checkpoint))
 
 
 def _done(records: list[CameraSpaceFrame]) -> Future:

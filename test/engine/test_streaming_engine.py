@@ -490,3 +490,18 @@ def test_refined_results_flag_the_frames_whose_last_ba_call_failed(
     assert failed == {0, 4}
     assert not any(result.ba_failed for result in live)
     assert [result.frame_index for result in final if result.ba_failed] == [0, 4]
+
+
+def test_the_hand_depth_correction_multiplies_every_scale_sample(model, frames: list) -> None:
+    """The same frames with a correction of 2 give exactly twice the scale estimate."""
+    estimates = {}
+    for correction in (None, 2.0):
+        config = replace(CONFIG, metric_scale=replace(CONFIG.metric_scale, min_samples=1,
+                                                      sample_interval=1,
+                                                      hand_depth_correction=correction))
+        with StreamingEngine(config, model) as engine:
+            _run(engine, frames)
+            estimates[correction] = engine.pose_track.scale_estimate()
+            assert engine.statistics['metric_scale_correction'] == (correction or 1.0)
+    assert estimates[None].samples == estimates[2.0].samples > 0
+    assert estimates[2.0].scale == pytest.approx(2.0 * estimates[None].scale, rel=1e-9)
