@@ -50,9 +50,10 @@ class MetricScaleConfig:
     hand_depth_correction: float | None = None
 
     def __post_init__(self) -> None:
-        if self.hand_depth_correction is not None and not self.hand_depth_correction > 0:
-            raise ConfigError(f'metric_scale.hand_depth_correction must be > 0 or null, got '
-                              f'{self.hand_depth_correction}')
+        correction = self.hand_depth_correction
+        if correction is not None and not (np.isfinite(correction) and correction > 0):
+            raise ConfigError(f'metric_scale.hand_depth_correction must be a finite number > 0 '
+                              f'or null, got {correction}')
         if self.history < 1 or not 1 <= self.min_samples <= self.history:
             raise ConfigError(f'metric_scale: need history >= min_samples >= 1, got '
                               f'{self.history} and {self.min_samples}')

@@ -41,5 +41,8 @@ def test_history_forgets_old_ratios() -> None:
 def test_bad_settings_and_inputs() -> None:
     with pytest.raises(ConfigError, match='history >= min_samples'):
         MetricScaleConfig(history=2, min_samples=5)
+    for correction in (0.0, -1.0, float('nan'), float('inf')):
+        with pytest.raises(ConfigError, match='hand_depth_correction'):
+            MetricScaleConfig(hand_depth_correction=correction)
     with pytest.raises(ValueError, match='same length'):
         MetricScaleEstimator().observe(np.ones(2), np.ones(3))
