@@ -73,18 +73,20 @@ def calibrate_sequence(path: Path, engine: StreamingEngine, every: int) -> Seque
     """Stream one sample directory through ``engine``; measure every ``every``-th frame."""
     sequence = open_eval_sequence(str(path))
     samples = SampleDataset(path / 'samples' if (path / 'samples').is_dir() else path)
-    values = []
+    results = []
     for rgb, stamp, intrinsics in sequence.frames():
-        for result in engine.push(rgb, stamp, intrinsics):
-            if result.frame_index % every or result.depth is None or not result.hands:
-                continue
-            truth = samples[result.frame_index]
-            values.append(frame_correction(
-                truth['depth'].numpy(), result.depth, truth['masks'].numpy().any(axis=0),
-                np.stack([hand.joints_2d for hand in result.hands]),
-                np.stack([hand.joints_cam[:, 2] for hand in result.hands])))
-    engine.flush()
+        results += engine.push(rgb, stamp, intrinsics)
+    results += engine.flush()
     engine.reset()
+    values = []
+    for result in results:
+        if result.frame_index % every or result.depth is None or not result.hands:
+            continue
+        truth = samples[result.frame_index]
+        values.append(frame_correction(
+            truth['depth'].numpy(), result.depth, truth['masks'].numpy().any(axis=0),
+            np.stack([hand.joints_2d for hand in result.hands]),
+            np.stack([hand.joints_cam[:, 2] for hand in result.hands])))
     values = np.array([v for v in values if np.isfinite(v)])
     return SequenceCalibration(sequence.name, float(np.median(values)) if len(values)
                                else float('nan'), len(values))
