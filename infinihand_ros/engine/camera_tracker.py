@@ -284,9 +284,12 @@ class CameraTracker:
         self._set_reference(view, T_raw, np.concatenate([kept, points]),
                             np.concatenate([reference.pixels, pixels]))
 
-    def _lift(self, view: TrackingView, taken: np.ndarray | None = None,
+    def _lift(self, view: TrackingView, taken: np.ndarray | tuple = (),
               count: int | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Return corners of ``view`` off the hands: (P, 3) camera points, (P, 2) pixels."""
+        """Return corners of ``view`` off the hands and ``taken`` pixels: points, pixels.
+
+        (P, 3) camera points and (P, 2) pixels, at most ``count`` (``max_corners`` if None).
+        """
         config = self.config
         count = config.max_corners if count is None else count
         if count <= 0:
@@ -302,7 +305,7 @@ class CameraTracker:
             bx0, by0 = (np.floor(box[:2]) - margin).astype(int).clip(0)
             bx1, by1 = (np.ceil(box[2:]) + margin + 1).astype(int)
             mask[by0:min(by1, height), bx0:min(bx1, width)] = 0
-        for u, v in (np.zeros((0, 2)) if taken is None else taken):
+        for u, v in taken:
             cv2.circle(mask, (int(round(u)), int(round(v))),
                        int(np.ceil(config.min_corner_distance_px)), 0, -1)
         corners = cv2.goodFeaturesToTrack(view.gray, count, config.corner_quality,
@@ -310,9 +313,7 @@ class CameraTracker:
         if corners is None:
             return np.zeros((0, 3), np.float32), np.zeros((0, 2), np.float32)
         pixels = corners.reshape(-1, 2).astype(np.float32)
-        rows = np.clip(np.round(pixels[:, 1]).astype(int), 0, height - 1)
-        cols = np.clip(np.round(pixels[:, 0]).astype(int), 0, width - 1)
-        depth = view.depth()[rows, cols].astype(np.float64)
+        depth = _depth_at(view.depth(), pixels)
         good = np.isfinite(depth) & (depth > 0)
         pixels, depth = pixels[good], depth[good]
         intrinsics = view.intrinsics
@@ -336,14 +337,19 @@ def _depth_agreement(points: np.ndarray, depth: np.ndarray, pixels: np.ndarray) 
     The points kept from the last reference are divided by it, so that they agree with the
     corners lifted from this frame's depth (the network's depth scale varies between frames).
     """
-    height, width = depth.shape
-    rows = np.clip(np.round(pixels[:, 1]).astype(int), 0, height - 1)
-    cols = np.clip(np.round(pixels[:, 0]).astype(int), 0, width - 1)
-    measured = depth[rows, cols].astype(np.float64)
+    measured = _depth_at(depth, pixels)
     good = np.isfinite(measured) & (measured > 0) & (points[:, 2] > 0)
     if not good.any():
         return 1.0
     return float(np.median(points[good, 2] / measured[good]))
+
+
+def _depth_at(depth: np.ndarray, pixels: np.ndarray) -> np.ndarray:
+    """Return (P,) float64 values of the (H, W) ``depth`` at the nearest pixel to each (u, v)."""
+    height, width = depth.shape
+    rows = np.clip(np.round(pixels[:, 1]).astype(int), 0, height - 1)
+    cols = np.clip(np.round(pixels[:, 0]).astype(int), 0, width - 1)
+    return depth[rows, cols].astype(np.float64)
 
 
 def _sharpness(gray: np.ndarray) -> float:
