@@ -1,9 +1,9 @@
 """Per-hand masks and tight boxes rendered from hand annotations (paper Sec. 3.1).
 
-The built-in hand's surface is the synthetic generator's: capsules around the skeleton
-(``mano/capsules.py``) with the generator's joint radii, intersected with each pixel's ray and
-z-tested between the two hands, so corpus masks match the generator's wherever no scene object
-covers the hand. Real MANO meshes are filled triangle by triangle, far to near.
+The built-in hand's surface is the synthetic generator's: a palm slab and capsules around the
+skeleton (``mano/capsules.py``) with the generator's joint radii, intersected with each pixel's
+ray and z-tested between the two hands, so corpus masks match the generator's wherever no scene
+object covers the hand. Real MANO meshes are filled triangle by triangle, far to near.
 """
 
 from typing import Final
@@ -50,23 +50,26 @@ def capsule_masks(joints_cam: np.ndarray, radii: np.ndarray, present: np.ndarray
 
     """
     k = _check_size(K, width, height)
-    capsule_set = caps.build_capsule_set(
-        [(np.asarray(joints_cam[side], np.float64), np.asarray(radii[side], np.float64), side)
-         for side in SIDES if present[side]])
+    hands = [(np.asarray(joints_cam[side], np.float64), np.asarray(radii[side], np.float64), side)
+             for side in SIDES if present[side]]
+    capsule_set = caps.build_capsule_set(hands)
+    palms = caps.build_palm_set(hands)
     depth = np.full((height, width), np.inf)
     owner = np.full((height, width), -1, np.int8)
     ray_x = (np.arange(width) - k[0, 2]) / k[0, 0]
     ray_y = (np.arange(height) - k[1, 2]) / k[1, 1]
-    rects = caps.capsule_rects(capsule_set, k, NEAR_M, width, height)
-    for index, (x0, y0, x1, y1) in enumerate(rects.tolist()):
-        if x0 >= x1 or y0 >= y1:
-            continue
-        hit = caps.ray_capsule_depth(ray_x[None, x0:x1], ray_y[y0:y1, None], capsule_set,
-                                     index)
-        with np.errstate(invalid='ignore'):
-            nearer = (hit >= NEAR_M) & (hit < depth[y0:y1, x0:x1])
-        depth[y0:y1, x0:x1][nearer] = hit[nearer]
-        owner[y0:y1, x0:x1][nearer] = capsule_set.sides[index]
+    for intersect, bodies, rects in (
+            (caps.ray_capsule_depth, capsule_set,
+             caps.capsule_rects(capsule_set, k, NEAR_M, width, height)),
+            (caps.ray_palm_depth, palms, caps.palm_rects(palms, k, NEAR_M, width, height))):
+        for index, (x0, y0, x1, y1) in enumerate(rects.tolist()):
+            if x0 >= x1 or y0 >= y1:
+                continue
+            hit = intersect(ray_x[None, x0:x1], ray_y[y0:y1, None], bodies, index)
+            with np.errstate(invalid='ignore'):
+                nearer = (hit >= NEAR_M) & (hit < depth[y0:y1, x0:x1])
+            depth[y0:y1, x0:x1][nearer] = hit[nearer]
+            owner[y0:y1, x0:x1][nearer] = bodies.sides[index]
     return np.stack([owner == side for side in SIDES])
 
 

@@ -1,34 +1,53 @@
-"""Capsule hands: capsules around a skeleton, their joint radii and analytic ray-capsule hits.
+"""Capsule hands: a palm slab and capsules around a skeleton, and their analytic ray hits.
 
 A capsule is the set of points within ``radius`` of a segment (a cylinder with two hemispherical
-caps). A hand is its 20 bones plus a few capsules across the palm, the thumb web and the thenar
-eminence, so that it reads as a hand rather than a stick figure. Rays are those of pixels in the
-OpenCV optical camera frame, ``(x, y, 1)`` (not normalised), so a ray parameter is directly the
-z depth. The built-in
-hand's surface is this one: the synthetic renderer draws it and the annotation masks of
-``data/hand_masks.py`` are cut from it.
+caps). A hand is a flat palm slab, capsules around the 15 bones of the fingers and the thumb,
+knuckle bumps and a thenar bulge. The slab is a polygon in the palm's middle plane (from the
+wrist to the MCP row) grown by the palm's half thickness all round: two flat faces plus capsules
+along the polygon's edges, so its rim is round. Rays are those of pixels in the OpenCV optical
+camera frame, ``(x, y, 1)`` (not normalised), so a ray parameter is directly the z depth. The
+built-in hand's surface is this one: the synthetic renderer draws it and the annotation masks
+of ``data/hand_masks.py`` are cut from it.
 """
 
 from dataclasses import dataclass
 from typing import Final
 
 from infinihand_ros.core.hand_conventions import JOINT_PARENTS
+from infinihand_ros.core.hand_conventions import LEFT
 import numpy as np
 
-#: Palm fillers: fractions along wrist -> MCP where a capsule runs across the palm.
-PALM_FRACTIONS: Final = (0.3, 0.6)
-#: MCP joints across the palm (index, middle, ring, pinky) and the thumb web (CMC, index MCP).
+#: MCP joints across the palm (index, middle, ring, pinky).
 PALM_MCPS: Final = (5, 9, 13, 17)
-THUMB_WEB: Final = (1, 5)
+#: Child joints of the bones drawn as capsules (every bone but the five from the wrist), in
+#: bone order; a hand's first capsules are these bones.
+BONE_CHILDREN: Final = tuple(child for child, parent in enumerate(JOINT_PARENTS) if parent > 0)
 #: Below this squared sine (relative) between a ray and a capsule axis, the side is skipped.
 PARALLEL_EPS: Final = 1e-12
-#: Capsule radius (m) at the wrist, MCP, PIP, DIP and tip joints of the mean hand.
+#: Capsule radius (m) at the wrist, MCP, PIP, DIP and tip joints of the mean hand (the wrist's
+#: sets the hand's size).
 JOINT_RADII_M: Final = (0.024, 0.011, 0.0095, 0.0085, 0.0075)
 #: The thumb is thicker: radius (m) at its CMC, MCP, IP joints and tip.
 THUMB_RADII_M: Final = (0.016, 0.0125, 0.011, 0.0095)
-#: The thenar eminence: a capsule from the wrist to the thumb's MCP, this thick (m).
-THENAR: Final = (0, 2)
-THENAR_RADIUS_M: Final = 0.014
+#: Palm slab of the mean hand (m): half thickness, offset of its middle plane from the joints
+#: towards the palm side, and its polygon: half widths at the wrist (thumb side, little-finger
+#: side), how far short of the MCP row it stops, how far inside the index and pinky MCPs its
+#: corners lie, and how far its little-finger edge bulges out (hypothenar).
+PALM_HALF_THICKNESS_M: Final = 0.0125
+PALM_OFFSET_M: Final = 0.003
+PALM_WRIST_HALF_WIDTHS_M: Final = (0.010, 0.014)
+PALM_ROW_BACK_M: Final = 0.008
+PALM_SIDE_INSET_M: Final = 0.0035
+HYPOTHENAR_BULGE_M: Final = 0.006
+#: Knuckles: spheres at the MCPs moved towards the back of the hand (m), radius relative to the
+#: MCP joint's.
+KNUCKLE_BACK_M: Final = 0.004
+KNUCKLE_SCALE: Final = 0.85
+#: Thenar eminence: a capsule from this fraction of the way wrist -> thumb CMC to the middle of
+#: the thumb's metacarpal, moved towards the palm side (m), this thick (m).
+THENAR_START: Final = 0.4
+THENAR_PALMAR_M: Final = 0.006
+THENAR_RADIUS_M: Final = 0.013
 
 
 @dataclass(frozen=True)
@@ -64,38 +83,107 @@ def joint_radii(betas: np.ndarray) -> np.ndarray:
     return np.array([JOINT_RADII_M[0], *THUMB_RADII_M, *list(JOINT_RADII_M[1:]) * 4]) * size
 
 
-def hand_capsules(joints: np.ndarray,
-                  radii: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Build the capsules of a hand: the 20 bones plus fillers across the palm and the thumb web.
+@dataclass(frozen=True)
+class PalmSet:
+    """Flat faces of the palm slabs of one or more hands (H palms, P polygon corners).
 
-    A bone's radius is the mean of its two joints' radii; palm fillers use the mean radius of
-    the wrist and the four MCPs.
+    Attributes:
+        centres: (H, 3) origin of each palm's middle plane (m).
+        axes: (H, 3, 3) rows: towards the fingers, towards the thumb, towards the palm side.
+        polygons: (H, P, 2) the slab's polygon (along, across) in that frame (m).
+        half_thickness: (H,) distance of the faces from the middle plane (m).
+        sides: (H,) int, hand side of each palm (0 left, 1 right).
+
+    """
+
+    centres: np.ndarray
+    axes: np.ndarray
+    polygons: np.ndarray
+    half_thickness: np.ndarray
+    sides: np.ndarray
+
+
+def _unit(vector: np.ndarray) -> np.ndarray:
+    return vector / max(float(np.linalg.norm(vector)), PARALLEL_EPS)
+
+
+def palm_axes(joints: np.ndarray, side: int) -> np.ndarray:
+    """Rows (3, 3): towards the fingers, towards the thumb, the palm's normal (palm side)."""
+    along = _unit(joints[9] - joints[0])
+    across = joints[5] - joints[17]
+    across = _unit(across - (across @ along) * along)
+    palm = np.cross(joints[5] - joints[0], joints[17] - joints[0])
+    palm *= -1.0 if side == LEFT else 1.0
+    normal = np.cross(along, across)
+    return np.stack([along, across, normal if normal @ palm >= 0.0 else -normal])
+
+
+def _palm(joints: np.ndarray, radii: np.ndarray,
+          side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, float]:
+    """Middle-plane origin (3,), axes (3, 3), polygon (P, 2) and half thickness of a palm."""
+    scale = radii[0] / JOINT_RADII_M[0]
+    axes = palm_axes(joints, side)
+    local = (joints - joints[0]) @ axes.T
+    index, middle, ring, pinky = (local[j, :2] for j in PALM_MCPS)
+    back, inset = PALM_ROW_BACK_M * scale, PALM_SIDE_INSET_M * scale
+    radial, ulnar = (width * scale for width in PALM_WRIST_HALF_WIDTHS_M)
+    pinky_corner = pinky + [-back, inset]
+    hypothenar = 0.5 * (pinky_corner + [0.0, -ulnar]) - [0.0, HYPOTHENAR_BULGE_M * scale]
+    polygon = np.array([[0.0, -ulnar], hypothenar, pinky_corner, ring - [back, 0.0],
+                        middle - [back, 0.0], index - [back, inset], [0.0, radial]])
+    centre = joints[0] + PALM_OFFSET_M * scale * axes[2]
+    return centre, axes, polygon, PALM_HALF_THICKNESS_M * scale
+
+
+def hand_capsules(joints: np.ndarray, radii: np.ndarray,
+                  side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Build the capsules of a hand: finger bones, knuckles, thenar and the palm slab's rim.
+
+    A bone's radius is the mean of its two joints' radii.
 
     Args:
         joints: (21, 3) joints, OpenPose order, any frame (m).
         radii: (21,) joint radii (m).
+        side: 0 left, 1 right.
 
     Returns:
-        (starts (N, 3), ends (N, 3), radii (N,)) of the capsules.
+        (starts (N, 3), ends (N, 3), radii (N,)) of the capsules, the bones first
+        (``BONE_CHILDREN``).
 
     """
-    pairs = [(parent, child) for child, parent in enumerate(JOINT_PARENTS) if parent >= 0]
-    starts = [joints[p] for p, _ in pairs]
-    ends = [joints[c] for _, c in pairs]
-    caps_r = [0.5 * (radii[p] + radii[c]) for p, c in pairs]
-    palm_r = float(np.mean(radii[[0, *PALM_MCPS]]))
-    for fraction in (*PALM_FRACTIONS, 1.0):
-        across = joints[0] + fraction * (joints[list(PALM_MCPS)] - joints[0])
-        starts += list(across[:-1])
-        ends += list(across[1:])
-        caps_r += [palm_r] * (len(PALM_MCPS) - 1)
-    starts.append(joints[THUMB_WEB[0]])
-    ends.append(joints[THUMB_WEB[1]])
-    caps_r.append(0.5 * (radii[THUMB_WEB[0]] + radii[THUMB_WEB[1]]))
-    starts.append(joints[THENAR[0]])
-    ends.append(joints[THENAR[1]])
-    caps_r.append(THENAR_RADIUS_M * radii[0] / JOINT_RADII_M[0])
+    joints = np.asarray(joints, np.float64)
+    radii = np.asarray(radii, np.float64)
+    scale = radii[0] / JOINT_RADII_M[0]
+    centre, axes, polygon, half = _palm(joints, radii, side)
+    starts = [joints[JOINT_PARENTS[c]] for c in BONE_CHILDREN]
+    ends = [joints[c] for c in BONE_CHILDREN]
+    caps_r = [0.5 * (radii[JOINT_PARENTS[c]] + radii[c]) for c in BONE_CHILDREN]
+    for mcp in PALM_MCPS:
+        knuckle = joints[mcp] - KNUCKLE_BACK_M * scale * axes[2]
+        starts.append(knuckle)
+        ends.append(knuckle)
+        caps_r.append(KNUCKLE_SCALE * radii[mcp])
+    palmar = THENAR_PALMAR_M * scale * axes[2]
+    starts.append(joints[0] + THENAR_START * (joints[1] - joints[0]) + palmar)
+    ends.append(0.5 * (joints[1] + joints[2]) + palmar)
+    caps_r.append(THENAR_RADIUS_M * scale)
+    rim = centre + polygon @ axes[:2]
+    starts += list(rim)
+    ends += list(np.roll(rim, -1, axis=0))
+    caps_r += [half] * len(rim)
     return np.array(starts), np.array(ends), np.array(caps_r)
+
+
+def build_palm_set(hands: list[tuple[np.ndarray, np.ndarray, int]]) -> PalmSet:
+    """Palm faces of several hands given as (joints (21, 3), radii (21,), side) in one frame."""
+    palms = [_palm(np.asarray(j, np.float64), np.asarray(r, np.float64), side)
+             for j, r, side in hands]
+    if not palms:
+        return PalmSet(np.zeros((0, 3)), np.zeros((0, 3, 3)), np.zeros((0, 0, 2)), np.zeros(0),
+                       np.zeros(0, int))
+    columns = list(zip(*palms))
+    return PalmSet(np.array(columns[0]), np.array(columns[1]), np.array(columns[2]),
+                   np.array(columns[3]), np.array([side for _, _, side in hands]))
 
 
 def build_capsule_set(hands: list[tuple[np.ndarray, np.ndarray, int]]) -> CapsuleSet:
@@ -106,7 +194,7 @@ def build_capsule_set(hands: list[tuple[np.ndarray, np.ndarray, int]]) -> Capsul
     """
     parts: list[tuple] = []
     for joints, radii, side in hands:
-        starts, ends, caps_r = hand_capsules(joints, radii)
+        starts, ends, caps_r = hand_capsules(joints, radii, side)
         drawn: dict[bytes, float] = {}
         for start, end, radius in zip(starts, ends, caps_r):
             caps = [drawn.get(point.tobytes(), -1.0) < radius for point in (start, end)]
@@ -214,3 +302,61 @@ def surface_normals(points: np.ndarray, capsules: CapsuleSet, ids: np.ndarray) -
                                                           PARALLEL_EPS)
     normals = rel - np.clip(along, 0.0, 1.0)[:, None] * axes
     return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), PARALLEL_EPS)
+
+
+def palm_rects(palms: PalmSet, k: np.ndarray, near_m: float, width: int,
+               height: int) -> np.ndarray:
+    """Pixel rectangles (H, 4) int (x0, y0, x1, y1), end-exclusive, covering each palm's faces."""
+    rects = np.zeros((len(palms.sides), 4), int)
+    for index in range(len(palms.sides)):
+        rim = palms.centres[index] + palms.polygons[index] @ palms.axes[index, :2]
+        count = len(rim)
+        edges = CapsuleSet(rim, np.roll(rim, -1, axis=0),
+                           np.full(count, palms.half_thickness[index]), np.ones(count, bool),
+                           np.ones(count, bool), np.zeros(count, int))
+        edge_rects = capsule_rects(edges, k, near_m, width, height)
+        edge_rects = edge_rects[(edge_rects[:, 0] < edge_rects[:, 2])
+                                & (edge_rects[:, 1] < edge_rects[:, 3])]
+        if len(edge_rects):
+            rects[index] = (*edge_rects[:, :2].min(axis=0), *edge_rects[:, 2:].max(axis=0))
+    return rects
+
+
+def _inside_polygon(x: np.ndarray, y: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """Whether points (x, y) (any shape) lie inside a polygon (P, 2) (even-odd rule)."""
+    inside = np.zeros(np.broadcast(x, y).shape, bool)
+    for (x0, y0), (x1, y1) in zip(polygon, np.roll(polygon, -1, axis=0)):
+        if x0 == x1:
+            continue
+        straddles = (x >= x0) != (x >= x1)
+        inside ^= straddles & (y < y0 + (x - x0) * ((y1 - y0) / (x1 - x0)))
+    return inside
+
+
+def ray_palm_depth(rx: np.ndarray, ry: np.ndarray, palms: PalmSet, index: int) -> np.ndarray:
+    """First z depth (h, w) where pixel rays (rx (1, w), ry (h, 1), 1) hit palm ``index``'s faces.
+
+    Returns:
+        (h, w) float64 depths; NaN where the ray misses both faces.
+
+    """
+    centre, axes = palms.centres[index], palms.axes[index]
+    normal = axes[2]
+    d_n = (normal[0] * rx + normal[2]) + normal[1] * ry
+    d_along = (axes[0, 0] * rx + axes[0, 2]) + axes[0, 1] * ry
+    d_across = (axes[1, 0] * rx + axes[1, 2]) + axes[1, 1] * ry
+    depth = np.full(np.broadcast(rx, ry).shape, np.nan)
+    with np.errstate(invalid='ignore', divide='ignore'):
+        for sign in (1.0, -1.0):
+            t = (centre @ normal + sign * palms.half_thickness[index]) / d_n
+            hit = _inside_polygon(t * d_along - centre @ axes[0], t * d_across - centre @ axes[1],
+                                  palms.polygons[index]) & (t > 0.0)
+            np.fmin(depth, np.where(hit, t, np.nan), out=depth)
+    return depth
+
+
+def palm_normals(rays: np.ndarray, palms: PalmSet, ids: np.ndarray) -> np.ndarray:
+    """Outward unit normals (N, 3) of the faces of palms ``ids`` (N,) seen along rays (N, 3)."""
+    normals = palms.axes[ids, 2]
+    facing = np.einsum('ij,ij->i', rays, normals)
+    return normals * np.where(facing > 0.0, -1.0, 1.0)[:, None]

@@ -58,7 +58,7 @@ def sample_arm_style(rng: np.random.Generator) -> ArmStyle:
                     sleeve_rgb=(int(colour[0]), int(colour[1]), int(colour[2])))
 
 
-def _head_axes(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def head_axes(T_world_cam: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Horizontal forward and left unit vectors (3,) of a camera-to-world pose (world z up)."""
     forward = T_world_cam[:3, 2].copy()
     forward[2] = 0.0
@@ -78,7 +78,7 @@ def arm_points(wrist: np.ndarray, T_world_cam: np.ndarray, side: int,
         style: the person's arms.
 
     """
-    forward, left = _head_axes(T_world_cam)
+    forward, left = head_axes(T_world_cam)
     outwards = left if side == LEFT else -left
     down = np.array([0.0, 0.0, -1.0])
     drop, across, back = SHOULDER_OFFSET_M

@@ -4,8 +4,9 @@ Scene surfaces are planar textured quads: each front-facing quad is clipped agai
 its texture is warped into the bounding rectangle of its projection with one
 ``cv2.warpPerspective`` (plane-to-image homography), and its inverse depth, an affine function of
 the pixel (u, v) on a plane, is z-tested against an inverse-depth buffer inside its polygon.
-Hands are capsules (bones, plus palm fillers) intersected analytically with the pixel rays of each
-capsule's projected bounding box and z-tested in the same buffer, so hands occlude each other and
+Hands are a palm slab (two flat faces and a round rim) with capsules around the finger bones,
+knuckles and thenar (``mano/capsules.py``), intersected analytically with the pixel rays of each
+part's projected bounding box and z-tested in the same buffer, so hands occlude each other and
 are occluded by the table and boxes. An arm (bare forearm, sleeve, upper arm) can be attached to
 each hand; it occludes like a hand but is not part of the hand's mask.
 
@@ -300,23 +301,47 @@ def _draw_capsules(frame: _Frame, capsules: caps.CapsuleSet) -> np.ndarray:
     return owner
 
 
+def _draw_palms(frame: _Frame, palms: caps.PalmSet, owner: np.ndarray, first: int) -> None:
+    """Z-test and draw the palms' flat faces; mark their pixels ``first + palm index``."""
+    height, width = owner.shape
+    ray_x = frame.ray_x.astype(np.float64)
+    ray_y = frame.ray_y.astype(np.float64)
+    rects = caps.palm_rects(palms, frame.k, frame.near_m, width, height)
+    for index, (x0, y0, x1, y1) in enumerate(rects.tolist()):
+        if x0 >= x1 or y0 >= y1:
+            continue
+        depth = caps.ray_palm_depth(ray_x[None, x0:x1], ray_y[y0:y1, None], palms, index)
+        with np.errstate(invalid='ignore', divide='ignore'):
+            inv_depth = np.where(depth >= frame.near_m, 1.0 / depth, 0.0).astype(np.float32)
+        target = frame.inv_depth[y0:y1, x0:x1]
+        nearer = inv_depth > target
+        cv2.copyTo(inv_depth, nearer.view(np.uint8), target)
+        owner[y0:y1, x0:x1][nearer] = first + index
+
+
 @dataclass(frozen=True)
 class _Bodies:
-    """Capsules of the hands (first ``num_hand``) and of their arms, with their colours.
+    """Capsules of the hands (first ``num_hand``) and of their arms, the hands' palm faces.
+
+    Pixel owners number the capsules, then the palm faces (``len(capsules.radii)`` on).
 
     Attributes:
         capsules: camera-frame capsules, hand capsules first.
-        num_hand: how many of them belong to hands (the rest are arms).
-        albedo: (N, 3) colour (RGB 0-255) of each capsule.
-        palm_normals: (N, 3) camera-frame unit palm normal of each hand capsule's hand (zeros
+        palms: camera-frame palm faces of the hands.
+        num_hand: how many of the capsules belong to hands (the rest are arms).
+        hand_sides: (N + H,) side of the hand each owner belongs to (-1 for arms).
+        albedo: (N + H, 3) colour (RGB 0-255) of each owner.
+        palm_normals: (N + H, 3) camera-frame unit palm normal of each hand owner's hand (zeros
             for arms).
-        nail_normals: (N, 3) camera-frame unit normal of the nail on a fingertip capsule (zeros
-            for the other capsules).
+        nail_normals: (N + H, 3) camera-frame unit normal of the nail on a fingertip capsule
+            (zeros for the other owners).
 
     """
 
     capsules: caps.CapsuleSet
+    palms: caps.PalmSet
     num_hand: int
+    hand_sides: np.ndarray
     albedo: np.ndarray
     palm_normals: np.ndarray
     nail_normals: np.ndarray
@@ -350,19 +375,21 @@ def _bodies(frame: _Frame, hands: Sequence[HandGeometry]) -> _Bodies:
     """Build the camera-frame capsules of the hands and arms, and their colours."""
     to_cam = (lambda points: np.asarray(points, np.float64) @ frame.rot_cw.T + frame.t_cw)
     joints = [to_cam(hand.joints_world) for hand in hands]
-    hand_set = caps.build_capsule_set(
-        [(j, np.asarray(hand.radii, np.float64), hand.side) for j, hand in zip(joints, hands)])
+    described = [(j, np.asarray(hand.radii, np.float64), hand.side)
+                 for j, hand in zip(joints, hands)]
+    hand_set = caps.build_capsule_set(described)
+    palms = caps.build_palm_set(described)
     albedo: list[np.ndarray] = []
-    palms: list[np.ndarray] = []
+    palm_rows: list[np.ndarray] = []
     nails: list[np.ndarray] = []
     for j, hand in zip(joints, hands):
         count = int(np.sum(hand_set.sides == hand.side))
         palm = _palm_normal(j, hand.side)
         albedo.append(np.tile(np.asarray(hand.skin_rgb, np.float64), (count, 1)))
-        palms.append(np.tile(palm, (count, 1)))
+        palm_rows.append(np.tile(palm, (count, 1)))
         nail = np.zeros((count, 3))
-        # Bone capsules come first, bone i ending at joint i + 1.
-        nail[np.asarray(TIP_JOINTS) - 1] = _nail_normals(j, palm)
+        # Bone capsules come first (``caps.BONE_CHILDREN``).
+        nail[[caps.BONE_CHILDREN.index(tip) for tip in TIP_JOINTS]] = _nail_normals(j, palm)
         nails.append(nail)
     arms = [hand for hand in hands if hand.arm is not None]
     parts = [hand_set]
@@ -373,13 +400,21 @@ def _bodies(frame: _Frame, hands: Sequence[HandGeometry]) -> _Bodies:
                                      np.full(3, hand.side)))
         albedo.append(np.array([hand.skin_rgb, hand.arm.sleeve_rgb, hand.arm.sleeve_rgb],
                                np.float64))
-        palms.append(np.zeros((3, 3)))
+        palm_rows.append(np.zeros((3, 3)))
         nails.append(np.zeros((3, 3)))
     capsules = caps.CapsuleSet(*(np.concatenate([getattr(part, name) for part in parts])
                                  for name in ('starts', 'ends', 'radii', 'start_caps',
                                               'end_caps', 'sides')))
+    for j, hand in zip(joints, hands):
+        albedo.append(np.asarray(hand.skin_rgb, np.float64)[None])
+        palm_rows.append(_palm_normal(j, hand.side)[None])
+        nails.append(np.zeros((1, 3)))
+    num_hand = len(hand_set.radii)
+    sides = np.concatenate([hand_set.sides, np.full(len(capsules.radii) - num_hand, -1),
+                            palms.sides])
     stack = (lambda rows: np.concatenate(rows) if rows else np.zeros((0, 3)))
-    return _Bodies(capsules, len(hand_set.radii), stack(albedo), stack(palms), stack(nails))
+    return _Bodies(capsules, palms, num_hand, sides, stack(albedo), stack(palm_rows),
+                   stack(nails))
 
 
 def _local_mean(values: np.ndarray, rows: np.ndarray, cols: np.ndarray,
@@ -418,7 +453,13 @@ def _shade_bodies(frame: _Frame, bodies: _Bodies, owner: np.ndarray, lighting: L
     ids = owner[rows, cols]
     z = 1.0 / frame.inv_depth[rows, cols].astype(np.float64)
     points = np.stack([frame.ray_x[cols] * z, frame.ray_y[rows] * z, z], axis=1)
-    normals = caps.surface_normals(points, bodies.capsules, ids)
+    num_capsules = len(bodies.capsules.radii)
+    normals = np.empty_like(points)
+    on_capsule = ids < num_capsules
+    normals[on_capsule] = caps.surface_normals(points[on_capsule], bodies.capsules,
+                                               ids[on_capsule])
+    normals[~on_capsule] = caps.palm_normals(points[~on_capsule], bodies.palms,
+                                             ids[~on_capsule] - num_capsules)
     px_per_m = frame.k[0, 0] / float(np.median(z))
     sigma_px = float(np.clip(px_per_m * NORMAL_SMOOTHING_M, *NORMAL_SMOOTHING_PX))
     normals = _local_mean(normals, rows, cols, sigma_px)
@@ -472,8 +513,7 @@ def _antialias(rgb: np.ndarray, covered: np.ndarray, rows: np.ndarray, cols: np.
 
 def _hand_masks(bodies: _Bodies, owner: np.ndarray) -> np.ndarray:
     """Visible pixels (2, H, W) bool of the left and right hands (arms excluded)."""
-    side_of = np.append(bodies.capsules.sides[:bodies.num_hand], -1)
-    pixel_side = side_of[np.where((owner >= 0) & (owner < bodies.num_hand), owner, -1)]
+    pixel_side = np.append(bodies.hand_sides, -1)[owner]
     return np.stack([pixel_side == side for side in SIDES])
 
 
@@ -539,6 +579,7 @@ def render_frame(scene: Scene, K: np.ndarray, T_world_cam: np.ndarray, width: in
     _draw_scene(frame, scene)
     bodies = _bodies(frame, hands)
     owner = _draw_capsules(frame, bodies.capsules)
+    _draw_palms(frame, bodies.palms, owner, len(bodies.capsules.radii))
     _shade_bodies(frame, bodies, owner, scene.lighting)
     depth = np.full(frame.inv_depth.shape, np.inf, np.float32)
     np.divide(1.0, frame.inv_depth, out=depth, where=frame.inv_depth > 0)

@@ -149,12 +149,12 @@ class SyntheticSequence:
             config.width, config.height)
         self.T_world_scene = geometry.invert_transform(self.T_scene_cams[0])
         betas, skin = hand_motion.sample_hand_appearance(rng)
+        self.arm_style = arms.sample_arm_style(rng)
         self.tracks = tuple(
             hand_motion.make_hand_track(rng, self.scene, side, self.T_scene_cams, config.fps,
-                                        betas, skin)
+                                        betas, skin, self.arm_style)
             for side in HAND_CHOICES[config.hands])
         self.joints_scene = tuple(self._forward(track) for track in self.tracks)
-        self.arm_style = arms.sample_arm_style(rng)
         self._options = RenderOptions(noise_sigma=config.noise_sigma,
                                       motion_blur_px=config.motion_blur_px,
                                       jpeg_quality=config.jpeg_quality)

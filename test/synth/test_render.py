@@ -280,15 +280,31 @@ def test_bad_inputs_raise_clear_errors(room: Scene) -> None:
         RenderOptions(noise_sigma=-1.0)
 
 
-def test_hand_capsules_cover_bones_palm_and_thumb_web() -> None:
+def test_hand_capsules_cover_bones_knuckles_thenar_and_palm_rim() -> None:
     hand = _flat_hand(RIGHT, [0.0, 0.0, 0.5])
-    starts, ends, radii = caps.hand_capsules(hand.joints_world, hand.radii)
-    assert len(starts) == 20 + 3 * 3 + 2  # bones, palm rows, thumb web, thenar
+    starts, ends, radii = caps.hand_capsules(hand.joints_world, hand.radii, RIGHT)
+    assert len(starts) == 15 + 4 + 1 + 7  # finger bones, knuckles, thenar, palm rim
+    np.testing.assert_array_equal(ends[:15], hand.joints_world[list(caps.BONE_CHILDREN)])
     capsule_set = caps.build_capsule_set([(hand.joints_world, hand.radii, RIGHT)])
     # Each distinct sphere is intersected once: fewer caps than 2 per capsule.
     assert capsule_set.start_caps.sum() + capsule_set.end_caps.sum() < 2 * len(starts)
-    assert capsule_set.end_caps[:20].all()
     np.testing.assert_array_equal(capsule_set.sides, RIGHT)
+
+
+def test_palm_face_is_flat_at_the_slab_half_thickness() -> None:
+    hand = _flat_hand(RIGHT, [0.0, 0.0, 0.5])  # palm faces away (+z), see the next test
+    palms = caps.build_palm_set([(hand.joints_world, hand.radii, RIGHT)])
+    scale = hand.radii[0] / caps.JOINT_RADII_M[0]
+    near_face = 0.5 + (caps.PALM_OFFSET_M - caps.PALM_HALF_THICKNESS_M) * scale
+    rx = ((np.arange(WIDTH) - K[0, 2]) / K[0, 0])[None, :]
+    ry = ((np.arange(HEIGHT) - K[1, 2]) / K[1, 1])[:, None]
+    depth = caps.ray_palm_depth(rx, ry, palms, 0)
+    centre = hand.joints_world[[0, 9]].mean(axis=0)
+    u, v = (centre[:2] / centre[2] * K[0, 0] + K[:2, 2]).round().astype(int)
+    assert depth[v, u] == pytest.approx(near_face, abs=1e-9)
+    assert np.isnan(depth[0, 0])
+    normals = caps.palm_normals(np.array([[0.0, 0.0, 1.0]]), palms, np.zeros(1, int))
+    np.testing.assert_allclose(normals, [[0.0, 0.0, -1.0]])  # towards the camera
 
 
 def _arm(hand: HandGeometry) -> ArmGeometry:
