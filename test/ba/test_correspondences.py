@@ -36,7 +36,7 @@ def test_tracks_reproject_within_a_pixel_of_the_truth(keyframes: list) -> None:
     error = np.linalg.norm(costs.reprojection(
         state, rays, problem.host, problem.obs_track, problem.obs_frame, problem.obs_xy,
         problem.intrinsics, with_jacobians=False).residual, axis=-1)
-    assert len(problem.host) > 400  # muted scene textures: fewer corners than saturated ones
+    assert len(problem.host) > 300  # muted textures, hands and forearms: fewer scene corners
     assert np.median(error) < 1.0
     gap = problem.obs_frame - problem.host[problem.obs_track]
     assert np.count_nonzero(gap >= 2) > 100, 'no link between non-adjacent keyframes'
@@ -66,9 +66,6 @@ def _turned(T_world_cam: np.ndarray, degrees: float) -> np.ndarray:
     return T_world_cam @ turn
 
 
-@pytest.mark.xfail(strict=True, reason='arms are not masked from the tracks (only the hands are): '
-                   'tracks on a moving forearm pull this sparse problem 1.1 deg off; without '
-                   'arms in the frames it stays within 1 deg')
 def test_pose_priors_follow_the_initial_poses_not_the_raw_ones(keyframes: list) -> None:
     """Relative-pose priors are the initial (corrected) poses' motion; the raw drift is ignored.
 
