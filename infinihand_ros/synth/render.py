@@ -276,47 +276,34 @@ def _draw_scene(frame: _Frame, scene: Scene) -> None:
                    float(offsets[index]))
 
 
-def _draw_capsules(frame: _Frame, capsules: caps.CapsuleSet) -> np.ndarray:
-    """Z-test and draw capsules into the inverse-depth buffer; return each pixel's capsule.
+def _draw_bodies(frame: _Frame, capsules: caps.CapsuleSet, palms: caps.PalmSet) -> np.ndarray:
+    """Z-test and draw the capsules, then the palms' flat faces; return each pixel's owner.
 
     Returns:
-        (H, W) int16 index of the capsule seen at each pixel (``NO_CAPSULE`` for none).
+        (H, W) int16: the capsule seen at each pixel, ``len(capsules.radii) + i`` for palm
+        face ``i``, ``NO_CAPSULE`` for none.
 
     """
     height, width = frame.inv_depth.shape
     owner = np.full((height, width), NO_CAPSULE, np.int16)
     ray_x = frame.ray_x.astype(np.float64)
     ray_y = frame.ray_y.astype(np.float64)
-    rects = caps.capsule_rects(capsules, frame.k, frame.near_m, width, height)
-    for index, (x0, y0, x1, y1) in enumerate(rects.tolist()):
-        if x0 >= x1 or y0 >= y1:
-            continue
-        depth = caps.ray_capsule_depth(ray_x[None, x0:x1], ray_y[y0:y1, None], capsules, index)
-        with np.errstate(invalid='ignore', divide='ignore'):
-            inv_depth = np.where(depth >= frame.near_m, 1.0 / depth, 0.0).astype(np.float32)
-        target = frame.inv_depth[y0:y1, x0:x1]
-        nearer = inv_depth > target
-        cv2.copyTo(inv_depth, nearer.view(np.uint8), target)
-        owner[y0:y1, x0:x1][nearer] = index
+    for intersect, bodies, rects, first in (
+            (caps.ray_capsule_depth, capsules,
+             caps.capsule_rects(capsules, frame.k, frame.near_m, width, height), 0),
+            (caps.ray_palm_depth, palms,
+             caps.palm_rects(palms, frame.k, frame.near_m, width, height), len(capsules.radii))):
+        for index, (x0, y0, x1, y1) in enumerate(rects.tolist()):
+            if x0 >= x1 or y0 >= y1:
+                continue
+            depth = intersect(ray_x[None, x0:x1], ray_y[y0:y1, None], bodies, index)
+            with np.errstate(invalid='ignore', divide='ignore'):
+                inv_depth = np.where(depth >= frame.near_m, 1.0 / depth, 0.0).astype(np.float32)
+            target = frame.inv_depth[y0:y1, x0:x1]
+            nearer = inv_depth > target
+            cv2.copyTo(inv_depth, nearer.view(np.uint8), target)
+            owner[y0:y1, x0:x1][nearer] = first + index
     return owner
-
-
-def _draw_palms(frame: _Frame, palms: caps.PalmSet, owner: np.ndarray, first: int) -> None:
-    """Z-test and draw the palms' flat faces; mark their pixels ``first + palm index``."""
-    height, width = owner.shape
-    ray_x = frame.ray_x.astype(np.float64)
-    ray_y = frame.ray_y.astype(np.float64)
-    rects = caps.palm_rects(palms, frame.k, frame.near_m, width, height)
-    for index, (x0, y0, x1, y1) in enumerate(rects.tolist()):
-        if x0 >= x1 or y0 >= y1:
-            continue
-        depth = caps.ray_palm_depth(ray_x[None, x0:x1], ray_y[y0:y1, None], palms, index)
-        with np.errstate(invalid='ignore', divide='ignore'):
-            inv_depth = np.where(depth >= frame.near_m, 1.0 / depth, 0.0).astype(np.float32)
-        target = frame.inv_depth[y0:y1, x0:x1]
-        nearer = inv_depth > target
-        cv2.copyTo(inv_depth, nearer.view(np.uint8), target)
-        owner[y0:y1, x0:x1][nearer] = first + index
 
 
 @dataclass(frozen=True)
@@ -578,8 +565,7 @@ def render_frame(scene: Scene, K: np.ndarray, T_world_cam: np.ndarray, width: in
     frame = _new_frame(k, pose, int(width), int(height), options.near_m)
     _draw_scene(frame, scene)
     bodies = _bodies(frame, hands)
-    owner = _draw_capsules(frame, bodies.capsules)
-    _draw_palms(frame, bodies.palms, owner, len(bodies.capsules.radii))
+    owner = _draw_bodies(frame, bodies.capsules, bodies.palms)
     _shade_bodies(frame, bodies, owner, scene.lighting)
     depth = np.full(frame.inv_depth.shape, np.inf, np.float32)
     np.divide(1.0, frame.inv_depth, out=depth, where=frame.inv_depth > 0)
