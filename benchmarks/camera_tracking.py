@@ -1,11 +1,14 @@
 """The engine's camera on real pixels with exactly known cameras, tracker on and off.
 
-    python benchmarks/camera_tracking.py [--stills DIR] [--frames N] [--json]
+    python benchmarks/camera_tracking.py [--stills DIR] [--frames N]
+        [--geometry-intervals 1 3] [--json]
 
 Builds two streams from the shared real stills (``../shared/data/real_hands_stills``) with
 ``infinihand_ros.synth.photo_streams`` and runs each through the default engine (bundled model,
-real-image hand source, BA off) with the per-frame tracker on and off (off: the network's
-camera as it is):
+real-image hand source, BA off) with the per-frame tracker on, the geometry branch on every
+n-th frame for each n of ``--geometry-intervals`` (``engine.geometry_interval``; the frames
+between tracked from the image alone), and with the tracker off (the network's camera as it
+is, geometry on every frame):
 - still camera, 10 Hz: a real hand and arm moving across a photo; the true pose is the
   identity, so every pose is drift (metres with the engine's metric scale, and degrees);
 - turning camera, 10 Hz: views from a camera turned about the photo's centre by up to 10
@@ -32,17 +35,19 @@ import torch
 STILLS = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real_hands_stills'
 
 
-def run(frames: list, tracker: bool) -> tuple[list, dict]:
-    """Return the engine's results and its tracker statistics for one stream."""
+def run(frames: list, tracker: bool, geometry_interval: int) -> tuple[list, dict, int]:
+    """Return the results, tracker statistics and frames without geometry of one stream."""
     config = load_engine_config()
     config = replace(config, hands=replace(config.hands, source='mediapipe'),
-                     bundle_adjustment=None, tracker=replace(config.tracker, enabled=tracker))
+                     bundle_adjustment=None, tracker=replace(config.tracker, enabled=tracker),
+                     geometry_interval=geometry_interval)
     with StreamingEngine(config) as engine:
         results = []
         for frame in frames:
             results.extend(engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics))
         results.extend(engine.flush())
-        return results, engine.statistics['tracker']
+        return (results, engine.statistics['tracker'],
+                engine.statistics['frames_without_geometry'])
 
 
 def main() -> None:
@@ -50,6 +55,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--stills', type=Path, default=STILLS)
     parser.add_argument('--frames', type=int, default=200, help='frames of the still camera')
+    parser.add_argument('--geometry-intervals', type=int, nargs='+', default=[1, 3],
+                        help='tracker rows: the geometry branch on every n-th frame')
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -72,13 +79,13 @@ def main() -> None:
     turning = rotation_stream(photo.rgb, photo.intrinsics, truth,
                               Intrinsics(400.0, 400.0, 159.5, 119.5, 320, 240))
     report = {}
-    for tracker in (True, False):
-        name = 'tracker' if tracker else 'network'
-        results, statistics = run(still, tracker)
+    runs = [(f'tracker, geometry every {n}', True, n) for n in args.geometry_intervals]
+    for name, tracker, interval in runs + [('network', False, 1)]:
+        results, statistics, skipped = run(still, tracker, interval)
         drift_m = np.array([np.linalg.norm(r.camera_pose.translation) for r in results])
         drift_deg = np.degrees([Rotation.from_matrix(r.camera_pose.rotation).magnitude()
                                 for r in results])
-        turned, turn_statistics = run(turning, tracker)
+        turned, turn_statistics, turn_skipped = run(turning, tracker, interval)
         error_deg = np.degrees([Rotation.from_matrix(r.camera_pose.rotation @ t.T).magnitude()
                                 for r, t in zip(turned, truth[0].T @ truth)])
         report[name] = {
@@ -87,6 +94,7 @@ def main() -> None:
             'turning_max_deg': float(error_deg.max()),
             'turning_mean_deg': float(error_deg.mean()),
             'still_states': statistics['states'], 'turning_states': turn_statistics['states'],
+            'without_geometry': (skipped + turn_skipped) / (len(still) + len(turning)),
             'ms_per_frame': (statistics['ms_per_frame'] + turn_statistics['ms_per_frame']) / 2}
     if args.json:
         print(json.dumps(report))
@@ -94,15 +102,16 @@ def main() -> None:
     print(f'still camera ({args.frames} frames, 10 Hz, a real hand and arm moving) and turning '
           'camera (100 frames, pure rotation up to 10 deg), default engine, BA off')
     print('| camera | still: max drift (m) | mean (m) | max (deg) | mean (deg) | '
-          'turning: max error (deg) | mean (deg) | tracker ms/frame |')
-    print('|---|---|---|---|---|---|---|---|')
+          'turning: max error (deg) | mean (deg) | tracker ms/frame | frames without geometry |')
+    print('|---|---|---|---|---|---|---|---|---|')
     for name, row in report.items():
         print(f"| {name} | {row['still_max_m']:.4f} | {row['still_mean_m']:.4f} | "
               f"{row['still_max_deg']:.3f} | {row['still_mean_deg']:.3f} | "
               f"{row['turning_max_deg']:.3f} | {row['turning_mean_deg']:.3f} | "
-              f"{row['ms_per_frame']:.2f} |")
-    print(f"tracker states: still {report['tracker']['still_states']}, turning "
-          f"{report['tracker']['turning_states']}")
+              f"{row['ms_per_frame']:.2f} | {100 * row['without_geometry']:.0f} % |")
+    for name, _, _ in runs:
+        print(f"{name}: tracker states: still {report[name]['still_states']}, turning "
+              f"{report[name]['turning_states']}")
 
 
 if __name__ == '__main__':

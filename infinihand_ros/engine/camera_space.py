@@ -92,7 +92,8 @@ class CameraSpaceFrame:
 
     Attributes:
         frame: the input frame.
-        T_raw: (4, 4) camera-to-world pose, model units.
+        T_raw: (4, 4) camera-to-world network pose, model units; None on a frame the
+            geometry branch skipped between geometry frames (tracked from the image alone).
         intrinsics: the intrinsics used, for the source image.
         hands: detected hands (camera frame, metres; pixels of the source image).
         depth: the frame's model depth on demand, or None when the geometry branch did not run
@@ -103,24 +104,26 @@ class CameraSpaceFrame:
     """
 
     frame: PreparedFrame
-    T_raw: np.ndarray
+    T_raw: np.ndarray | None
     intrinsics: Intrinsics
     hands: tuple[HandState, ...]
     depth: FrameDepth | None
     view: TrackingView | None
 
 
-def tracking_view(frame: PreparedFrame, depth: FrameDepth, intrinsics_model: np.ndarray,
-                  size: tuple[int, int]) -> TrackingView:
+def tracking_view(frame: PreparedFrame, depth: FrameDepth | None,
+                  intrinsics_model: np.ndarray, size: tuple[int, int]) -> TrackingView:
     """Return the tracker's view of a frame: grey model input, depth on demand, (3, 3) K.
 
-    ``size`` is the model input's (height, width).
+    ``size`` is the model input's (height, width); ``depth`` is None on a frame without the
+    geometry branch.
     """
     height, width = size
     weights = torch.tensor([0.299, 0.587, 0.114], dtype=frame.pixels.dtype,
                            device=frame.pixels.device)
     gray = torch.tensordot(weights, frame.pixels, dims=1).mul(255.0).round().clamp(0, 255)
-    return TrackingView(gray.to(torch.uint8).cpu().numpy(), depth.model,
+    return TrackingView(gray.to(torch.uint8).cpu().numpy(),
+                        None if depth is None else depth.model,
                         Intrinsics.from_matrix(intrinsics_model, width, height),
                         frame.mapping.content_box, np.zeros((0, 4)))
 

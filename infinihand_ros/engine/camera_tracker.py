@@ -18,6 +18,11 @@ frame's depth, and new corners away from them fill up to ``max_corners``.
 
 Everything runs on the model-input image (grey, with the model's depth and intrinsics for it),
 in the network's model units, so the metric scale and BA corrections apply on top unchanged.
+
+A frame the geometry branch skipped (``engine.geometry_interval``) comes without a network pose
+and without depth: it is tracked from the points held (the last pose is the prior and the
+fallback), and whatever needs depth (a new reference, a restart) waits for the next frame with
+it; ``needs_depth`` tells the engine to run the geometry branch on the next frame.
 """
 
 from collections import Counter
@@ -111,7 +116,8 @@ class TrackingView:
     Attributes:
         gray: (H, W) uint8 grey model-input image.
         depth: returns the (H, W) float32 network depth, model units; called only for a new
-            reference frame (the engine runs the depth head there, not on every frame).
+            reference frame (the engine runs the depth head there, not on every frame); None
+            on a frame the geometry branch skipped.
         intrinsics: the model-input intrinsics the network used.
         content_box: (x0, y0, x1, y1) pixels holding image content (the rest is padding).
         hand_boxes: (N, 4) hand boxes (x0, y0, x1, y1), pixels.
@@ -119,7 +125,7 @@ class TrackingView:
     """
 
     gray: np.ndarray
-    depth: Callable[[], np.ndarray]
+    depth: Callable[[], np.ndarray] | None
     intrinsics: Intrinsics
     content_box: tuple[int, int, int, int]
     hand_boxes: np.ndarray
@@ -168,7 +174,9 @@ class CameraTracker:
         self._reference: _Reference | None = None
         self._last_gray: np.ndarray | None = None
         self._previous: tuple[np.ndarray, np.ndarray] | None = None  # (T_raw, T_network)
+        self._last_T_raw: np.ndarray | None = None
         self._lost = 0  # frames in a row without tracking
+        self.needs_depth = False  # a new reference or a restart waits for a frame with depth
         self.states: Counter[str] = Counter()
         self.seconds = 0.0
         self.frames = 0
@@ -178,20 +186,34 @@ class CameraTracker:
         return {'states': dict(self.states),
                 'ms_per_frame': 1000.0 * self.seconds / self.frames if self.frames else 0.0}
 
-    def track(self, view: TrackingView | None, T_network: np.ndarray) -> TrackedFrame:
-        """Return the frame's pose; ``T_network``: its network pose (4, 4), model units."""
+    def track(self, view: TrackingView | None, T_network: np.ndarray | None) -> TrackedFrame:
+        """Return the frame's pose; ``T_network``: its network pose (4, 4), model units.
+
+        ``T_network`` is None on a frame the geometry branch skipped (its ``view`` has no
+        depth): the last pose is then the prior. The stream's first frame needs both.
+        """
         start = time.perf_counter()
-        result = self._track(view, np.asarray(T_network, dtype=np.float64))
-        self._previous = (result.T_raw, np.asarray(T_network, dtype=np.float64))
+        if T_network is None:
+            if self._last_T_raw is None or view is None or view.depth is not None:
+                raise ValueError('CameraTracker.track: a frame without a network pose needs an '
+                                 'earlier frame and a view without depth')
+            result = self._track(view, self._last_T_raw)
+        else:
+            T_network = np.asarray(T_network, dtype=np.float64)
+            result = self._track(view, self._prior(T_network))
+            self._previous = (result.T_raw, T_network)
+        self._last_T_raw = result.T_raw
         self.states[result.state] += 1
         self.frames += 1
         self.seconds += time.perf_counter() - start
         return result
 
-    def _track(self, view: TrackingView | None, T_network: np.ndarray) -> TrackedFrame:
-        prior = self._prior(T_network)
+    def _track(self, view: TrackingView | None, prior: np.ndarray) -> TrackedFrame:
         if not self.config.enabled or view is None:
             return TrackedFrame(prior, 'predicted', 0)
+        with_depth = view.depth is not None
+        if with_depth:
+            self.needs_depth = False
         reference = self._reference
         if reference is None:  # the stream's first frame: the world
             self._set_reference(view, prior, *self._lift(view))
@@ -206,9 +228,15 @@ class CameraTracker:
                 self._lost = 0
                 if inliers < max(self.config.refresh_fraction * reference.count,
                                  self.config.min_inliers):
-                    self._renew(reference, view, T_raw)
+                    if with_depth:
+                        self._renew(reference, view, T_raw)
+                    else:
+                        self.needs_depth = True
                 return TrackedFrame(T_raw, 'tracked', inliers)
         self._lost += 1
+        if not with_depth:  # nothing to restart on: the next frame brings depth
+            self.needs_depth = True
+            return TrackedFrame(prior, 'predicted', 0)
         had = len(reference.pixels)
         starved = had < self.config.min_inliers
         cut = (alive < self.config.cut_fraction * had
@@ -221,7 +249,7 @@ class CameraTracker:
         return TrackedFrame(prior, 'predicted', 0)
 
     def _prior(self, T_network: np.ndarray) -> np.ndarray:
-        """Return the network's motion since the previous frame applied to its pose."""
+        """Return the network's motion since the last frame it posed, applied to that pose."""
         if self._previous is None:
             return T_network
         T_previous, T_network_previous = self._previous

@@ -137,6 +137,11 @@ class EngineConfig:
             'windowed' (frames batched into windows, geometry and hands pipelined).
         window: frames per window in windowed mode (the paper: 16).
         keyframe_interval: after the anchors, every this-many-th frame enters the memory.
+        geometry_interval: in per-frame mode, for a moving camera whose hands come from
+            outside the model (MediaPipe), the geometry branch runs on every this-many-th frame
+            after the anchors (and on any frame whose tracker needs depth: a new reference, a
+            restart); the frames between are tracked from the image alone with the last
+            intrinsics. 1: every frame (the reference path).
         device: torch device ('cpu', 'cuda', 'cuda:1', ...), checked at load.
         cpu_precision: on the CPU, 'auto' runs the aggregator in bf16 where the CPU computes
             bf16 natively (AVX512-BF16 or AMX, checked at start-up; float32 elsewhere), 'fp32'
@@ -166,6 +171,7 @@ class EngineConfig:
     mode: str = 'per_frame'
     window: int = 16
     keyframe_interval: int = 1
+    geometry_interval: int = 1
     device: str = 'cpu'
     cpu_precision: str = 'fp32'
     model: ModelSelection = field(default_factory=ModelSelection)
@@ -190,7 +196,8 @@ class EngineConfig:
             raise ConfigError(f'engine.camera_motion must be one of {list(CAMERA_MOTIONS)}, '
                               f'got {self.camera_motion!r}')
         require_at_least('engine', 1, window=self.window,
-                         keyframe_interval=self.keyframe_interval)
+                         keyframe_interval=self.keyframe_interval,
+                         geometry_interval=self.geometry_interval)
         require_at_least('engine', 0, static_intrinsics_frames=self.static_intrinsics_frames)
         check_device(self.device)
 

@@ -143,17 +143,20 @@ class PoseTrack:
         """Return the estimator's current estimate (what the applied scale follows)."""
         return self.estimator.estimate()
 
-    def add(self, frame_index: int, timestamp_ns: int, T_network: np.ndarray,
+    def add(self, frame_index: int, timestamp_ns: int, T_network: np.ndarray | None,
             view: TrackingView | None = None) -> str:
         """Record a frame: its network camera-to-world pose (4, 4, model units) and image.
 
         The tracker measures the frame's pose in ``view`` (without one, the network's motion
-        is used). Returns how the pose was found (``camera_tracker.TRACKING_STATES``).
+        is used). ``T_network`` is None for a frame the geometry branch skipped (tracked from
+        the image alone). Returns how the pose was found (``camera_tracker.TRACKING_STATES``).
         """
-        T_network = np.array(T_network, dtype=np.float64)
-        if self._world_from_network is None:
-            self._world_from_network = invert_transform(T_network)
-        tracked = self.tracker.track(view, self._world_from_network @ T_network)
+        if T_network is not None:
+            T_network = np.array(T_network, dtype=np.float64)
+            if self._world_from_network is None:
+                self._world_from_network = invert_transform(T_network)
+            T_network = self._world_from_network @ T_network
+        tracked = self.tracker.track(view, T_network)
         self._entries[frame_index] = _Entry(timestamp_ns, tracked.T_raw, tracked.state)
         while len(self._entries) > self.config.capacity:
             self._entries.popitem(last=False)

@@ -12,8 +12,11 @@ consumer gets. The depth head runs only on the frames whose depth is used (a new
 reference, a metric-scale sample, a keyframe for BA; every keyframe with ``depth_maps``). A fixed
 camera whose hands come from outside the model (``camera_motion: static`` with MediaPipe) skips
 the geometry branch wherever the intrinsics are known (given, or fixed from the first frames'
-predictions): the hand source is all such a frame needs. A hand source that reads images
-(MediaPipe) does so in its own thread, in push order, while the model runs on the frame.
+predictions): the hand source is all such a frame needs. A moving camera with such a hand
+source runs the geometry branch on every ``geometry_interval``-th frame in per-frame mode (and
+wherever the tracker needs depth); the frames between are tracked from the image alone, with
+the last intrinsics, and carry no depth. A hand source that reads images (MediaPipe) does so in
+its own thread, in push order, while the model runs on the frame.
 
 The first ``anchor_frames`` frames are held back and processed together (the paper's anchor
 context), in both modes. After that, per-frame mode runs each frame as it arrives; windowed mode
@@ -52,6 +55,7 @@ from infinihand_ros.engine.camera_space import depth_ratios
 from infinihand_ros.engine.camera_space import PreparedFrame
 from infinihand_ros.engine.camera_space import split_frames
 from infinihand_ros.engine.camera_space import split_geometry
+from infinihand_ros.engine.camera_space import tracking_view
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.frame_input import check_image
@@ -138,6 +142,8 @@ class StreamingEngine:
         self._predicted: list[Intrinsics] = []  # a fixed camera's first predicted intrinsics
         self._fixed_intrinsics: Intrinsics | None = None  # ... and their median, once known
         self._counts = {'frames_with_depth': 0, 'frames_without_geometry': 0}
+        # (index, source intrinsics, model-input intrinsics) of the last geometry frame
+        self._geometry_seen: tuple[int, Intrinsics, Intrinsics] | None = None
         ba = self.config.bundle_adjustment
         blend_s = (self.config.pose_track.correction_blend_s if ba is None
                    else ba.corrections.blend_s)
@@ -150,7 +156,8 @@ class StreamingEngine:
         """Return frames pushed, windows decoding, scale, pose version, tracker and BA figures.
 
         ``frames_with_depth`` counts the frames whose depth the depth head computed,
-        ``frames_without_geometry`` those a fixed camera passed without the geometry branch.
+        ``frames_without_geometry`` those that went on without the geometry branch (a fixed
+        camera's, or a moving camera's between geometry frames: ``geometry_interval``).
         """
         estimate = self.pose_track.scale_estimate()
         return {'frames_pushed': self._frames_pushed, **self._counts,
@@ -189,6 +196,8 @@ class StreamingEngine:
             self._last_stamp = frame.timestamp_ns
             if frame.pixels is None:  # no model input: the geometry branch is not needed
                 self._decoding.append(_done(self._without_geometry(frame)))
+            elif self._between_geometry(frame.index):
+                self._decoding.append(_done(self._tracked_only(frame)))
             else:
                 self._pending.append(frame)
                 if len(self._pending) >= self._block_size():
@@ -328,7 +337,8 @@ class StreamingEngine:
         self._source_size = size
         index = self._frames_pushed
         after_anchors = index - self._anchor_frames
-        keyframe = after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0
+        keyframe = ((after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0)
+                    and not self._between_geometry(index))
         source = image.copy() if self._ba is not None and keyframe else None
         detections = (None if self._detector is None else
                       self._detector.submit(self._hand_source.detect, image.copy(), index))
@@ -351,6 +361,32 @@ class StreamingEngine:
         intrinsics = frame.intrinsics or self._fixed_intrinsics
         hands = self._hand_source.camera_hands(frame.found(), (), intrinsics)
         return [CameraSpaceFrame(frame, np.eye(4), intrinsics, hands, None, None)]
+
+    def _between_geometry(self, index: int) -> bool:
+        """Return whether a moving camera's frame goes on with the tracker alone.
+
+        Per-frame mode, hands from outside the model, the tracker on: after the anchors the
+        geometry branch runs on every ``geometry_interval``-th frame since the last one it ran
+        on, and on the next frame whenever the tracker needs depth.
+        """
+        seen = self._geometry_seen
+        return (self.config.geometry_interval > 1 and self.config.mode == 'per_frame'
+                and self._tracking and not self._hand_source.uses_hand_branch
+                and not self._pending and index >= self._anchor_frames and seen is not None
+                and index - seen[0] < self.config.geometry_interval
+                and not self.pose_track.tracker.needs_depth)
+
+    def _tracked_only(self, frame: PreparedFrame) -> list[CameraSpaceFrame]:
+        """Return a moving camera's frame record between geometry frames: no network pose."""
+        self._counts['frames_without_geometry'] += 1
+        _, intrinsics, model_intrinsics = self._geometry_seen
+        if frame.intrinsics is not None:
+            intrinsics = frame.intrinsics
+            model_intrinsics = frame.mapping.intrinsics_to_model(frame.intrinsics)
+        size = tuple(frame.pixels.shape[-2:])
+        view = tracking_view(frame, None, model_intrinsics.matrix(), size)
+        hands = self._hand_source.camera_hands(frame.found(), (), intrinsics)
+        return [CameraSpaceFrame(frame, None, intrinsics, hands, None, view)]
 
     def _fix_intrinsics(self, record: CameraSpaceFrame) -> None:
         """Collect a fixed camera's predicted intrinsics; fix their median once enough came."""
@@ -447,6 +483,8 @@ class StreamingEngine:
                      for hand in record.hands]
             view = dataclasses.replace(record.view, hand_boxes=np.array(boxes).reshape(-1, 4))
         state = track.add(frame.index, frame.timestamp_ns, record.T_raw, view)
+        if record.T_raw is not None and view is not None:
+            self._geometry_seen = (frame.index, record.intrinsics, view.intrinsics)
         if frame.found().scene_cut or state == 'reinitialised':
             self._output.new_scene()
         to_ba = (self._ba is not None and frame.keyframe and frame.source_image is not None

@@ -217,3 +217,63 @@ def test_references_renewed_on_depth_of_varying_scale_keep_the_path() -> None:
         assert result.state == 'tracked'
         assert rotation_error < 0.5 and translation_error < 0.05, index
     assert renewals >= 2
+
+
+def test_frames_without_network_pose_or_depth_are_tracked_and_renew_on_depth() -> None:
+    """Depth and the network's pose on every third frame only (and where the tracker asks).
+
+    The frames between are tracked from the points held; a renewal due there waits for the
+    next frame with depth, which the tracker asks for. The path stays as exact as with depth on
+    every frame.
+    """
+    def pan(index: int) -> np.ndarray:
+        angles = np.array([0.05, 0.5, 0.05]) * np.sin(index / 40.0)
+        return make_transform(Rotation.from_euler('xyz', angles).as_matrix(),
+                              np.array([0.006, -0.002, 0.002]) * index)
+
+    source = texture(0)
+    tracker = CameraTracker(TrackerConfig())
+    asked = renewals = 0
+    last_geometry = 0
+    for index in range(120):
+        gray, depth = render(source, pan(index))
+        geometry = index == 0 or index - last_geometry >= 3 or tracker.needs_depth
+        asked += tracker.needs_depth
+        before = tracker._reference
+        if geometry:
+            last_geometry = index
+            result = tracker.track(view(gray, depth), pan(index) @ drifting_network(0))
+            assert not tracker.needs_depth
+        else:
+            result = tracker.track(TrackingView(gray, None, K, (0, 0, WIDTH, HEIGHT),
+                                                np.zeros((0, 4))), None)
+            assert tracker._reference is before  # no renewal without depth
+        renewals += before is not None and tracker._reference is not before
+        translation_error, rotation_error = errors(result.T_raw, pan(index))
+        assert result.state == 'tracked'
+        assert rotation_error < 0.5 and translation_error < 0.05, index
+    assert renewals >= 1 and asked >= 1, (renewals, asked)
+
+
+def test_a_frame_without_depth_that_loses_the_points_holds_the_pose_and_asks_for_depth() -> None:
+    source = texture(3)
+    tracker = CameraTracker(TrackerConfig())
+    for index in range(3):
+        gray, depth = render(source, true_pose(index))
+        held = tracker.track(view(gray, depth), true_pose(index)).T_raw
+    covered = TrackingView(np.full_like(gray, 90), None, K, (0, 0, WIDTH, HEIGHT),
+                           np.zeros((0, 4)))
+    result = tracker.track(covered, None)
+    assert result.state == 'predicted' and tracker.needs_depth
+    np.testing.assert_array_equal(result.T_raw, held)
+    gray, depth = render(source, true_pose(4))
+    result = tracker.track(view(gray, depth), true_pose(4))
+    assert result.state == 'tracked' and not tracker.needs_depth
+    assert errors(result.T_raw, true_pose(4))[1] < 0.5
+
+
+def test_the_first_frame_needs_the_network_pose() -> None:
+    gray, _ = render(texture(0), np.eye(4))
+    with pytest.raises(ValueError, match='network pose'):
+        CameraTracker(TrackerConfig()).track(
+            TrackingView(gray, None, K, (0, 0, WIDTH, HEIGHT), np.zeros((0, 4))), None)

@@ -7,6 +7,9 @@ hand source, BA off (the tracker alone):
   (``benchmarks/camera_tracking.py`` runs 20 s);
 - a turning camera: views of one photo from a camera turned about its centre (pure rotation,
   no parallax: the hardest case for depth-based tracking), with exactly known rotations.
+
+Each runs with the geometry branch on every frame and on every third (``geometry_interval``:
+the frames between tracked from the image alone).
 """
 
 from dataclasses import replace
@@ -44,7 +47,9 @@ def _run(engine: StreamingEngine, frames: list) -> list:
     return results + engine.flush()
 
 
-def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list) -> None:
+@pytest.mark.parametrize('geometry_interval', [1, 3])
+def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list,
+                                                               geometry_interval: int) -> None:
     """12 s at 10 Hz: drift at most 2 cm and 1 degree at every frame, in metres."""
     patch = hand_and_arm_patch([still.rgb for still in stills])
     assert patch is not None, 'MediaPipe found no hand in any still'
@@ -55,10 +60,12 @@ def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list) -> 
     corners = np.stack([span_x * (0.5 + 0.5 * np.sin(2 * np.pi * 2 * steps)),
                         span_y * (0.5 + 0.5 * np.sin(2 * np.pi * 3 * steps))], axis=1)
     frames = pasted_stream(background.rgb, patch, corners, background.intrinsics)
-    with _engine() as engine:
+    with _engine(geometry_interval=geometry_interval) as engine:
         results = _run(engine, frames)
         statistics = engine.statistics['tracker']
+        skipped = engine.statistics['frames_without_geometry']
     assert len(results) == 120
+    assert (skipped >= 60) == (geometry_interval == 3), skipped
     translation = np.array([np.linalg.norm(r.camera_pose.translation) for r in results])
     rotation = np.degrees([Rotation.from_matrix(r.camera_pose.rotation).magnitude()
                            for r in results])
@@ -67,7 +74,8 @@ def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list) -> 
     assert statistics['states'].get('tracked', 0) >= 117, statistics
 
 
-def test_turning_camera_followed_on_a_real_photo(stills: list) -> None:
+@pytest.mark.parametrize('geometry_interval', [1, 3])
+def test_turning_camera_followed_on_a_real_photo(stills: list, geometry_interval: int) -> None:
     """60 frames turning up to 10 degrees: every frame within 1 degree of the truth."""
     photo = stills[5]
     steps = np.linspace(0.0, 1.0, 60)
@@ -77,8 +85,10 @@ def test_turning_camera_followed_on_a_real_photo(stills: list) -> None:
     truth = Rotation.from_rotvec(rotvecs).as_matrix()
     out = Intrinsics(400.0, 400.0, 159.5, 119.5, 320, 240)
     frames = rotation_stream(photo.rgb, photo.intrinsics, truth, out)
-    with _engine() as engine:
+    with _engine(geometry_interval=geometry_interval) as engine:
         results = _run(engine, frames)
+        skipped = engine.statistics['frames_without_geometry']
+    assert (skipped >= 30) == (geometry_interval == 3), skipped
     relative = truth[0].T @ truth  # the world is the first frame's camera
     errors = np.degrees([Rotation.from_matrix(r.camera_pose.rotation @ t.T).magnitude()
                          for r, t in zip(results, relative)])

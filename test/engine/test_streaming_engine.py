@@ -505,3 +505,65 @@ def test_the_hand_depth_correction_multiplies_every_scale_sample(model, frames: 
             assert engine.statistics['metric_scale_correction'] == (correction or 1.0)
     assert estimates[None].samples == estimates[2.0].samples > 0
     assert estimates[2.0].scale == pytest.approx(2.0 * estimates[None].scale, rel=1e-9)
+
+
+def _geometry_frames(engine: StreamingEngine, frames: list,
+                     monkeypatch: pytest.MonkeyPatch) -> tuple[list, list[int]]:
+    """Return the results and the indices of the frames the geometry branch ran on."""
+    ran: list[int] = []
+    run_geometry = engine.model.run_geometry
+
+    def counted(images: torch.Tensor, *args: object, **kwargs: object) -> object:
+        first = engine._frames_pushed - images.shape[1]
+        ran.extend(range(first, first + images.shape[1]))
+        return run_geometry(images, *args, **kwargs)
+
+    monkeypatch.setattr(engine.model, 'run_geometry', counted)
+    return _run(engine, frames), ran
+
+
+def test_geometry_runs_on_every_nth_frame_with_hands_from_outside_the_model(
+        model, frames: list, monkeypatch: pytest.MonkeyPatch) -> None:
+    """geometry_interval 3, MediaPipe hands: the frames between are tracked from the image.
+
+    They carry no depth, enter no memory and keep the last geometry frame's intrinsics; the
+    geometry branch runs on the anchors and then at most 3 frames apart (sooner where the
+    tracker asks for depth).
+    """
+    config = replace(CONFIG, keyframe_interval=1, geometry_interval=3,
+                     hands=replace(CONFIG.hands, source='mediapipe'))
+    with StreamingEngine(config, model) as engine:
+        results, ran = _geometry_frames(engine, frames, monkeypatch)
+        skipped = engine.statistics['frames_without_geometry']
+    assert [r.frame_index for r in results] == list(range(NUM_FRAMES))
+    assert ran[:2] == [0, 1] and ran == sorted(set(ran))
+    assert all(b - a <= 3 for a, b in zip(ran, ran[1:])) and ran[-1] >= NUM_FRAMES - 3
+    assert skipped == NUM_FRAMES - len(ran) > 0
+    for result in results:
+        assert np.all(np.isfinite(result.camera_pose.matrix()))
+        if result.frame_index not in ran:
+            assert not result.is_keyframe and result.depth is None
+            assert result.tracking in ('tracked', 'predicted')
+            assert result.intrinsics == frames[result.frame_index].intrinsics
+
+
+@pytest.mark.parametrize('settings', [
+    {'hands': 'infinihand'}, {'mode': 'windowed', 'window': 4}, {'tracker': False},
+    {'camera_motion': 'static'}])
+def test_geometry_runs_on_every_frame_where_a_frame_needs_it(
+        model, frames: list, monkeypatch: pytest.MonkeyPatch, settings: dict) -> None:
+    """The hand branch, windowed mode and an untracked camera need the model on each frame.
+
+    (A fixed camera skips it by its own rule: on given intrinsics, every frame here.)
+    """
+    config = replace(CONFIG, geometry_interval=3, hands=replace(
+        CONFIG.hands, source=settings.pop('hands', 'mediapipe')),
+        tracker=replace(CONFIG.tracker, enabled=settings.pop('tracker', True)), **settings)
+    with StreamingEngine(config, model) as engine:
+        results, ran = _geometry_frames(engine, frames, monkeypatch)
+        skipped = engine.statistics['frames_without_geometry']
+    assert len(results) == NUM_FRAMES
+    if config.camera_motion == 'static':
+        assert ran == [] and skipped == NUM_FRAMES
+    else:
+        assert ran == list(range(NUM_FRAMES)) and skipped == 0

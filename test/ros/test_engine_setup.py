@@ -27,9 +27,9 @@ def test_defaults_are_the_engine_file_with_the_node_settings() -> None:
     assert node == replace(load_engine_config(), hands=node.hands)
     assert engine_config_for(_node(bundle_adjustment='in_process')).bundle_adjustment == \
         load_ba_config()
-    config = engine_config_for(_node(mode='windowed', keyframe_interval=3,
+    config = engine_config_for(_node(mode='windowed', keyframe_interval=3, geometry_interval=1,
                                      bundle_adjustment='none'))
-    assert (config.mode, config.keyframe_interval) == ('windowed', 3)
+    assert (config.mode, config.keyframe_interval, config.geometry_interval) == ('windowed', 3, 1)
     assert config.bundle_adjustment is None
 
 

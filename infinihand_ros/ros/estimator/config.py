@@ -50,6 +50,11 @@ class EngineSelection:
                           choices=MODES)
     keyframe_interval: int = parameter(1, 'After the anchors, every n-th frame enters the '
                                        'streaming memory.', 1, _BIG_INT)
+    geometry_interval: int = parameter(
+        3, 'per_frame, moving camera, hands from mediapipe: the geometry branch runs on every '
+        'n-th frame (and where the camera tracker needs depth); the frames between are tracked '
+        'from the image alone with the last intrinsics (1: every frame, the reference path).',
+        1, _BIG_INT)
     bundle_adjustment: str = parameter(
         'none', 'Bundle adjustment: none (each pose measured by the per-frame camera tracker '
         "only; the best published poses on our test data); in_process (the engine's background "
@@ -58,7 +63,8 @@ class EngineSelection:
 
     def __post_init__(self) -> None:
         check_parameters(self, 'engine.')
-        require_at_least('engine', 1, keyframe_interval=self.keyframe_interval)
+        require_at_least('engine', 1, keyframe_interval=self.keyframe_interval,
+                         geometry_interval=self.geometry_interval)
 
 
 @dataclass(frozen=True)

@@ -1,10 +1,10 @@
 """The node's engine configuration: the engine YAML with the node's parameters applied.
 
 The YAML is ``config/engine.yaml`` unless ``engine.config`` names another. The ``engine.*``
-parameters select the mode, device, checkpoint and BA; ``camera.motion`` is the engine's
-``camera_motion``, ``hands.*`` its hand source (they replace the file's ``hands`` section) and
-``identity.*``, ``shape.*`` and ``smoothing.*`` its output stage (they replace the file's
-``output`` section). Errors name the parameter.
+parameters select the mode, the keyframe and geometry intervals, device, checkpoint and BA;
+``camera.motion`` is the engine's ``camera_motion``, ``hands.*`` its hand source (they replace
+the file's ``hands`` section) and ``identity.*``, ``shape.*`` and ``smoothing.*`` its output
+stage (they replace the file's ``output`` section). Errors name the parameter.
 """
 
 from dataclasses import replace
@@ -57,5 +57,6 @@ def engine_config_for(config: EstimatorConfig) -> EngineConfig:
         ba = replace(ba, worker=replace(ba.worker, when_behind=LIVE_WHEN_BEHIND))
     output = OutputConfig(config.identity, config.shape, config.smoothing)
     return replace(base, mode=selection.mode, keyframe_interval=selection.keyframe_interval,
-                   device=selection.device, model=model, bundle_adjustment=ba,
+                   geometry_interval=selection.geometry_interval, device=selection.device,
+                   model=model, bundle_adjustment=ba,
                    camera_motion=config.camera.motion, output=output, hands=config.hands)
