@@ -21,8 +21,12 @@ in the network's model units, so the metric scale and BA corrections apply on to
 
 A frame the geometry branch skipped (``engine.geometry_interval``) comes without a network pose
 and without depth: it is tracked from the points held (the last pose is the prior and the
-fallback), and whatever needs depth (a new reference, a restart) waits for the next frame with
-it; ``needs_depth`` tells the engine to run the geometry branch on the next frame.
+fallback), and whatever needs depth (a new reference, a restart) waits for a frame with it;
+``needs_depth`` asks the engine for the geometry branch on the next frame (first, when the
+tracker is ``lost``). When the geometry branch runs on a frame after its answer went out,
+``absorb`` takes its network pose and depth as if they had come with it: a renewal due there
+happens on them, and a frame the tracker lost takes the network's motion (for the frames after
+it).
 """
 
 from collections import Counter
@@ -207,6 +211,32 @@ class CameraTracker:
         self.frames += 1
         self.seconds += time.perf_counter() - start
         return result
+
+    @property
+    def lost(self) -> bool:
+        """Return whether the last frame was not tracked (its pose is the prior)."""
+        return self._lost > 0
+
+    def absorb(self, view: TrackingView, T_network: np.ndarray) -> np.ndarray | None:
+        """Take the network pose and depth of the frame just tracked without them.
+
+        ``view`` is that frame's view with its depth. A renewal due on the frame happens now;
+        a frame the tracker lost is bridged by the network's motion, as when its geometry came
+        first (its pose is returned then, else None), and the next frame still needs depth.
+        """
+        if view.depth is None or self._last_T_raw is None:
+            raise ValueError('CameraTracker.absorb: needs a tracked frame and its depth')
+        start = time.perf_counter()
+        T_network = np.asarray(T_network, dtype=np.float64)
+        bridged = None
+        if self._lost:
+            bridged = self._last_T_raw = self._prior(T_network)
+        elif self.needs_depth and self._reference is not None:
+            self._renew(self._reference, view, self._last_T_raw)
+            self.needs_depth = False
+        self._previous = (self._last_T_raw, T_network)
+        self.seconds += time.perf_counter() - start
+        return bridged
 
     def _track(self, view: TrackingView | None, prior: np.ndarray) -> TrackedFrame:
         if not self.config.enabled or view is None:

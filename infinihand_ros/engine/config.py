@@ -141,7 +141,9 @@ class EngineConfig:
             outside the model (MediaPipe), the geometry branch runs on every this-many-th frame
             after the anchors (and on any frame whose tracker needs depth: a new reference, a
             restart); the frames between are tracked from the image alone with the last
-            intrinsics. 1: every frame (the reference path).
+            intrinsics. Without BA, a frame whose tracker holds the camera is answered before
+            its geometry branch runs (``StreamingEngine.catch_up``). 1: every frame, geometry
+            first (the reference path).
         device: torch device ('cpu', 'cuda', 'cuda:1', ...), checked at load.
         cpu_precision: on the CPU, 'auto' runs the aggregator in bf16 where the CPU computes
             bf16 natively (AVX512-BF16 or AMX, checked at start-up; float32 elsewhere), 'fp32'

@@ -162,6 +162,18 @@ class PoseTrack:
             self._entries.popitem(last=False)
         return tracked.state
 
+    def absorb(self, frame_index: int, T_network: np.ndarray, view: TrackingView) -> None:
+        """Take the network pose (4, 4) and view with depth of the frame just added without.
+
+        For a frame whose geometry ran after its answer went out (``CameraTracker.absorb``);
+        a frame the tracker lost takes the network's motion in the track.
+        """
+        T_network = self._world_from_network @ np.array(T_network, dtype=np.float64)
+        bridged = self.tracker.absorb(view, T_network)
+        entry = self._entries.get(frame_index)
+        if bridged is not None and entry is not None:
+            self._entries[frame_index] = _Entry(entry.timestamp_ns, bridged, entry.tracking)
+
     def observe_scale(self, metric_depths: np.ndarray, model_depths: np.ndarray) -> None:
         """Feed hand depths (m) and model depths at the same pixels; update the applied scale."""
         self.estimator.observe(metric_depths, model_depths)

@@ -14,9 +14,14 @@ camera whose hands come from outside the model (``camera_motion: static`` with M
 the geometry branch wherever the intrinsics are known (given, or fixed from the first frames'
 predictions): the hand source is all such a frame needs. A moving camera with such a hand
 source runs the geometry branch on every ``geometry_interval``-th frame in per-frame mode (and
-wherever the tracker needs depth); the frames between are tracked from the image alone, with
-the last intrinsics, and carry no depth. A hand source that reads images (MediaPipe) does so in
-its own thread, in push order, while the model runs on the frame.
+wherever the tracker needs depth: a new reference, or first, with the network's pose as prior,
+where it lost the camera); every other frame is tracked from the image alone, with the last
+intrinsics, and carries no depth. Without BA, a frame due for the geometry branch while the
+tracker holds the camera is also tracked from the image first and its result goes out at once;
+the geometry branch then runs on it in ``catch_up()`` (a live caller's idle time after
+publishing) or at the start of the next call, so results do not depend on when it runs. A hand
+source that reads images (MediaPipe) does so in its own thread, in push order, while the model
+runs on the frame.
 
 The first ``anchor_frames`` frames are held back and processed together (the paper's anchor
 context), in both modes. After that, per-frame mode runs each frame as it arrives; windowed mode
@@ -56,6 +61,7 @@ from infinihand_ros.engine.camera_space import PreparedFrame
 from infinihand_ros.engine.camera_space import split_frames
 from infinihand_ros.engine.camera_space import split_geometry
 from infinihand_ros.engine.camera_space import tracking_view
+from infinihand_ros.engine.camera_tracker import TrackingView
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.frame_input import check_image
@@ -141,9 +147,11 @@ class StreamingEngine:
         self._source_size: tuple[int, int] | None = None  # (width, height) of the stream
         self._predicted: list[Intrinsics] = []  # a fixed camera's first predicted intrinsics
         self._fixed_intrinsics: Intrinsics | None = None  # ... and their median, once known
-        self._counts = {'frames_with_depth': 0, 'frames_without_geometry': 0}
+        self._counts = {'frames_with_depth': 0, 'frames_without_geometry': 0,
+                        'geometry_failures': 0}
         # (index, source intrinsics, model-input intrinsics) of the last geometry frame
         self._geometry_seen: tuple[int, Intrinsics, Intrinsics] | None = None
+        self._owed: CameraSpaceFrame | None = None  # a frame out before its geometry branch ran
         ba = self.config.bundle_adjustment
         blend_s = (self.config.pose_track.correction_blend_s if ba is None
                    else ba.corrections.blend_s)
@@ -194,15 +202,41 @@ class StreamingEngine:
             frame = self._prepare(image, timestamp_ns, intrinsics)
             self._frames_pushed += 1
             self._last_stamp = frame.timestamp_ns
-            if frame.pixels is None:  # no model input: the geometry branch is not needed
-                self._decoding.append(_done(self._without_geometry(frame)))
-            elif self._between_geometry(frame.index):
-                self._decoding.append(_done(self._tracked_only(frame)))
-            else:
+            self._pay_geometry()
+            route = self._route(frame)
+            if route == 'tracked':
+                frame = dataclasses.replace(frame, keyframe=False)
+            elif self._ba is not None and frame.keyframe:
+                frame = dataclasses.replace(frame, source_image=image.copy())
+            if route == 'geometry':
                 self._pending.append(frame)
                 if len(self._pending) >= self._block_size():
                     self._run_block()
+                return self._collect(wait=False)
+            self._accepted_stamp = frame.timestamp_ns
+            if route == 'static':  # no model input: the geometry branch is not needed
+                self._decoding.append(_done(self._without_geometry(frame)))
+            else:
+                record = self._tracked_only(frame)
+                self._decoding.append(_done([record]))
+                if route == 'tracked':
+                    self._counts['frames_without_geometry'] += 1
+                else:
+                    self._owed = record
             return self._collect(wait=False)
+
+    def catch_up(self) -> None:
+        """Run the geometry branch a frame whose result went out first still owes (if any).
+
+        For a live caller, right after publishing a result, while no frame waits; otherwise
+        the next call does it. Results are the same either way.
+
+        Raises:
+            EngineStateError: after ``close()`` or when another thread is inside the engine.
+
+        """
+        with self._exclusive():
+            self._pay_geometry()
 
     def flush(self) -> list[FrameResult]:
         """Process every frame still held back and return all remaining results.
@@ -216,6 +250,7 @@ class StreamingEngine:
 
         """
         with self._exclusive():
+            self._pay_geometry()
             if self._pending:
                 self._run_block()
             return self._collect(wait=True)
@@ -237,6 +272,7 @@ class StreamingEngine:
 
         """
         with self._exclusive():
+            self._pay_geometry()
             failed: frozenset[int] = frozenset()
             if self._ba is not None:
                 self._ba.settle(self.pose_track, timeout_s)
@@ -337,12 +373,10 @@ class StreamingEngine:
         self._source_size = size
         index = self._frames_pushed
         after_anchors = index - self._anchor_frames
-        keyframe = ((after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0)
-                    and not self._between_geometry(index))
-        source = image.copy() if self._ba is not None and keyframe else None
+        keyframe = after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0
         detections = (None if self._detector is None else
                       self._detector.submit(self._hand_source.detect, image.copy(), index))
-        return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, source,
+        return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, None,
                              detections)
 
     def _skips_geometry(self, intrinsics: Intrinsics | None) -> bool:
@@ -362,23 +396,36 @@ class StreamingEngine:
         hands = self._hand_source.camera_hands(frame.found(), (), intrinsics)
         return [CameraSpaceFrame(frame, np.eye(4), intrinsics, hands, None, None)]
 
-    def _between_geometry(self, index: int) -> bool:
-        """Return whether a moving camera's frame goes on with the tracker alone.
+    def _route(self, frame: PreparedFrame) -> str:
+        """Return how a checked frame goes on.
 
-        Per-frame mode, hands from outside the model, the tracker on: after the anchors the
-        geometry branch runs on every ``geometry_interval``-th frame since the last one it ran
-        on, and on the next frame whenever the tracker needs depth.
+        'static': a fixed camera's frame without the model; 'geometry': the geometry branch
+        first (the paper's path); 'tracked': tracked from the image alone, between geometry
+        frames; 'tracked_first': tracked from the image alone, its geometry branch run after
+        its result went out. The last two only in per-frame mode for a tracked moving camera
+        whose hands come from outside the model (``geometry_interval`` > 1), after the
+        anchors. A frame where the tracker needs depth runs the geometry branch too: first
+        when the tracker lost the camera (its network pose is the prior), after its result
+        for a new reference; so does a frame with hands while the metric scale warms up (its
+        depth gives the samples); it always comes first with BA (its keyframes carry their
+        depth).
         """
+        if frame.pixels is None:
+            return 'static'
         seen = self._geometry_seen
-        return (self.config.geometry_interval > 1 and self.config.mode == 'per_frame'
-                and self._tracking and not self._hand_source.uses_hand_branch
-                and not self._pending and index >= self._anchor_frames and seen is not None
-                and index - seen[0] < self.config.geometry_interval
-                and not self.pose_track.tracker.needs_depth)
+        tracker = self.pose_track.tracker
+        if (self.config.geometry_interval == 1 or self.config.mode != 'per_frame'
+                or not self._tracking or self._hand_source.uses_hand_branch or self._pending
+                or frame.index < self._anchor_frames or seen is None
+                or (tracker.needs_depth and tracker.lost)):
+            return 'geometry'
+        if (frame.index - seen[0] < self.config.geometry_interval and not tracker.needs_depth
+                and not (self.pose_track.scale_state == 'warmup' and frame.found().hands)):
+            return 'tracked'
+        return 'geometry' if self._ba is not None else 'tracked_first'
 
-    def _tracked_only(self, frame: PreparedFrame) -> list[CameraSpaceFrame]:
-        """Return a moving camera's frame record between geometry frames: no network pose."""
-        self._counts['frames_without_geometry'] += 1
+    def _tracked_only(self, frame: PreparedFrame) -> CameraSpaceFrame:
+        """Return a moving camera's frame record without the geometry branch: no network pose."""
         _, intrinsics, model_intrinsics = self._geometry_seen
         if frame.intrinsics is not None:
             intrinsics = frame.intrinsics
@@ -386,7 +433,38 @@ class StreamingEngine:
         size = tuple(frame.pixels.shape[-2:])
         view = tracking_view(frame, None, model_intrinsics.matrix(), size)
         hands = self._hand_source.camera_hands(frame.found(), (), intrinsics)
-        return [CameraSpaceFrame(frame, None, intrinsics, hands, None, view)]
+        return CameraSpaceFrame(frame, None, intrinsics, hands, None, view)
+
+    def _pay_geometry(self) -> None:
+        """Run the geometry branch on the frame that went out before it (``tracked_first``).
+
+        The frame enters the streaming memory; the pose track takes its network pose and
+        depth (``PoseTrack.absorb``), its hands are metric-scale samples (the frames between
+        give none) and its intrinsics hold for the frames after it. Non-finite outputs leave the memory as it was
+        and are counted (``geometry_failures``); the next frame then runs the geometry first.
+        """
+        owed, self._owed = self._owed, None
+        if owed is None:
+            return
+        frame = owed.frame
+        intrinsics, known = self._given_intrinsics([frame])
+        try:
+            with torch.inference_mode():
+                geometry, poses, used = self.model.run_geometry(
+                    frame.pixels[None, None], self._stream, [frame.keyframe], intrinsics, known,
+                    self._detection, self._cpu_bf16, masks=False, depth=False)
+        except ModelOutputError:
+            self._counts['geometry_failures'] += 1
+            self.pose_track.tracker.needs_depth = True
+            return
+        record = split_geometry(geometry, poses, used, [frame], self.model.geometry)[0]
+        record = dataclasses.replace(record, hands=owed.hands,
+                                     view=_with_hand_boxes(record.view, frame, owed.hands))
+        self.pose_track.absorb(frame.index, record.T_raw, record.view)
+        self._geometry_seen = (frame.index, record.intrinsics, record.view.intrinsics)
+        self.pose_track.observe_scale(*self._scale_samples(record, True))
+        if record.depth.computed:
+            self._counts['frames_with_depth'] += 1
 
     def _fix_intrinsics(self, record: CameraSpaceFrame) -> None:
         """Collect a fixed camera's predicted intrinsics; fix their median once enough came."""
@@ -470,6 +548,7 @@ class StreamingEngine:
         while self._decoding:
             self._decoding.popleft().exception()
         self._pending.clear()
+        self._owed = None
         if self._detector is not None:  # one worker, in order: this runs after the queued ones
             self._detector.submit(lambda: None).result()
 
@@ -477,11 +556,8 @@ class StreamingEngine:
         """Track the frame's pose, feed BA, place its hands in the world: its final result."""
         frame = record.frame
         track = self.pose_track
-        view = None
-        if record.view is not None:
-            boxes = [frame.mapping.points_to_model(hand.box_xyxy.reshape(2, 2)).reshape(4)
-                     for hand in record.hands]
-            view = dataclasses.replace(record.view, hand_boxes=np.array(boxes).reshape(-1, 4))
+        view = (None if record.view is None
+                else _with_hand_boxes(record.view, frame, record.hands))
         state = track.add(frame.index, frame.timestamp_ns, record.T_raw, view)
         if record.T_raw is not None and view is not None:
             self._geometry_seen = (frame.index, record.intrinsics, view.intrinsics)
@@ -490,8 +566,7 @@ class StreamingEngine:
         to_ba = (self._ba is not None and frame.keyframe and frame.source_image is not None
                  and record.depth is not None)
         kept = record.depth is not None and frame.keyframe and (to_ba or self.config.depth_maps)
-        samples = self._scale_samples(record, kept)
-        track.observe_scale(samples, np.ones(len(samples)))
+        track.observe_scale(*self._scale_samples(record, kept))
         self._fix_intrinsics(record)
         depth = (frame.mapping.map_to_source(record.depth.model()) * track.scale if kept
                  else None)
@@ -510,20 +585,22 @@ class StreamingEngine:
             hand_source=self._hand_source.name,
             **self._posed(record.hands, track.best(frame.index))))
 
-    def _scale_samples(self, record: CameraSpaceFrame, depth_kept: bool) -> np.ndarray:
-        """Return the metric-scale samples of a frame's hands, on the frames that are sampled.
+    def _scale_samples(self, record: CameraSpaceFrame, depth_kept: bool
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """Return the metric-scale samples of a frame's hands (and their unit model depths).
 
-        Every frame while the scale warms up; after that every ``sample_interval``-th frame
-        and any frame whose depth is computed anyway (a tracker reference, or ``depth_kept``:
-        a keyframe for BA or ``depth_maps``).
+        On the frames that are sampled: every frame while the scale warms up; after that
+        every ``sample_interval``-th frame and any frame whose depth is computed anyway (a
+        tracker reference, or ``depth_kept``: a keyframe for BA or ``depth_maps``).
         """
         depth, hands = record.depth, record.hands
         interval = self.config.metric_scale.sample_interval
         if depth is None or not hands or not (
                 depth.computed or depth_kept or self.pose_track.scale_state == 'warmup'
                 or record.frame.index % interval == 0):
-            return np.zeros(0)
-        return depth_ratios(depth.model(), record.frame, hands) * self._scale_correction
+            return np.zeros(0), np.zeros(0)
+        samples = depth_ratios(depth.model(), record.frame, hands) * self._scale_correction
+        return samples, np.ones(len(samples))
 
     def _on_final_trajectory(self, result: FrameResult,
                              ba_failed: frozenset[int]) -> FrameResult:
@@ -566,6 +643,14 @@ def _scale_correction(config: EngineConfig) -> float:
         return configured
     checkpoint = config.model.checkpoint
     return 1.0 if checkpoint is None else hand_depth_correction(resolve_checkpoint(checkpoint))
+
+
+def _with_hand_boxes(view: TrackingView, frame: PreparedFrame,
+                     hands: tuple[HandState, ...]) -> TrackingView:
+    """Return ``view`` with the hands' boxes in model-input pixels (never tracked)."""
+    boxes = [frame.mapping.points_to_model(hand.box_xyxy.reshape(2, 2)).reshape(4)
+             for hand in hands]
+    return dataclasses.replace(view, hand_boxes=np.array(boxes).reshape(-1, 4))
 
 
 def _done(records: list[CameraSpaceFrame]) -> Future:

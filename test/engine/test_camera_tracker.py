@@ -219,12 +219,15 @@ def test_references_renewed_on_depth_of_varying_scale_keep_the_path() -> None:
     assert renewals >= 2
 
 
-def test_frames_without_network_pose_or_depth_are_tracked_and_renew_on_depth() -> None:
+@pytest.mark.parametrize('after', [False, True])
+def test_frames_without_network_pose_or_depth_are_tracked_and_renew_on_depth(
+        after: bool) -> None:
     """Depth and the network's pose on every third frame only (and where the tracker asks).
 
     The frames between are tracked from the points held; a renewal due there waits for the
-    next frame with depth, which the tracker asks for. The path stays as exact as with depth on
-    every frame.
+    next frame with depth, which the tracker asks for. ``after``: a frame due by the interval
+    is tracked without them too, and they come afterwards (``absorb``), as the engine does
+    without BA. The path stays as exact as with depth on every frame.
     """
     def pan(index: int) -> np.ndarray:
         angles = np.array([0.05, 0.5, 0.05]) * np.sin(index / 40.0)
@@ -240,7 +243,13 @@ def test_frames_without_network_pose_or_depth_are_tracked_and_renew_on_depth() -
         geometry = index == 0 or index - last_geometry >= 3 or tracker.needs_depth
         asked += tracker.needs_depth
         before = tracker._reference
-        if geometry:
+        if geometry and after and index and not tracker.needs_depth:
+            last_geometry = index
+            result = tracker.track(TrackingView(gray, None, K, (0, 0, WIDTH, HEIGHT),
+                                                np.zeros((0, 4))), None)
+            assert tracker.absorb(view(gray, depth), pan(index) @ drifting_network(0)) is None
+            assert not tracker.needs_depth
+        elif geometry:
             last_geometry = index
             result = tracker.track(view(gray, depth), pan(index) @ drifting_network(0))
             assert not tracker.needs_depth
@@ -277,3 +286,24 @@ def test_the_first_frame_needs_the_network_pose() -> None:
     with pytest.raises(ValueError, match='network pose'):
         CameraTracker(TrackerConfig()).track(
             TrackingView(gray, None, K, (0, 0, WIDTH, HEIGHT), np.zeros((0, 4))), None)
+
+
+def test_a_lost_frame_whose_geometry_comes_after_is_bridged_by_the_network() -> None:
+    """Its answer holds the last pose; ``absorb`` bridges it by the network's motion."""
+    source = texture(3)
+    tracker = CameraTracker(TrackerConfig())
+    for index in range(3):
+        gray, depth = render(source, true_pose(index))
+        tracker.track(view(gray, depth), true_pose(index))
+    covered = np.full_like(gray, 90)
+    result = tracker.track(TrackingView(covered, None, K, (0, 0, WIDTH, HEIGHT),
+                                        np.zeros((0, 4))), None)
+    assert result.state == 'predicted'
+    bridged = tracker.absorb(view(covered, depth), true_pose(3))
+    assert errors(bridged, true_pose(3))[1] < 0.5 and tracker.needs_depth
+    gray, depth = render(source, true_pose(4))
+    result = tracker.track(view(gray, depth), true_pose(4))
+    assert result.state == 'tracked' and errors(result.T_raw, true_pose(4))[1] < 0.5
+    with pytest.raises(ValueError, match='depth'):
+        tracker.absorb(TrackingView(gray, None, K, (0, 0, WIDTH, HEIGHT), np.zeros((0, 4))),
+                       true_pose(4))

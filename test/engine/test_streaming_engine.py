@@ -507,63 +507,116 @@ def test_the_hand_depth_correction_multiplies_every_scale_sample(model, frames: 
     assert estimates[2.0].scale == pytest.approx(2.0 * estimates[None].scale, rel=1e-9)
 
 
-def _geometry_frames(engine: StreamingEngine, frames: list,
-                     monkeypatch: pytest.MonkeyPatch) -> tuple[list, list[int]]:
-    """Return the results and the indices of the frames the geometry branch ran on."""
-    ran: list[int] = []
+def _counting_geometry(engine: StreamingEngine, monkeypatch: pytest.MonkeyPatch) -> list[int]:
+    """Return a list that gets the frame count of each geometry-branch call of ``engine``."""
+    calls: list[int] = []
     run_geometry = engine.model.run_geometry
 
     def counted(images: torch.Tensor, *args: object, **kwargs: object) -> object:
-        first = engine._frames_pushed - images.shape[1]
-        ran.extend(range(first, first + images.shape[1]))
+        calls.append(images.shape[1])
         return run_geometry(images, *args, **kwargs)
 
     monkeypatch.setattr(engine.model, 'run_geometry', counted)
-    return _run(engine, frames), ran
+    return calls
+
+
+def _interval_config(**settings: object) -> EngineConfig:
+    """Return CONFIG with every frame a keyframe, geometry on every 3rd, MediaPipe hands."""
+    settings = {'hands': replace(CONFIG.hands, source='mediapipe'), **settings}
+    return replace(CONFIG, keyframe_interval=1, geometry_interval=3, **settings)
 
 
 def test_geometry_runs_on_every_nth_frame_with_hands_from_outside_the_model(
         model, frames: list, monkeypatch: pytest.MonkeyPatch) -> None:
     """geometry_interval 3, MediaPipe hands: the frames between are tracked from the image.
 
-    They carry no depth, enter no memory and keep the last geometry frame's intrinsics; the
-    geometry branch runs on the anchors and then at most 3 frames apart (sooner where the
-    tracker asks for depth).
+    They carry no depth, enter no memory (every frame that runs the geometry branch is a
+    keyframe here) and keep the given intrinsics; the geometry branch runs on the anchors and
+    then at most 3 frames apart (sooner where the tracker asks for depth).
     """
-    config = replace(CONFIG, keyframe_interval=1, geometry_interval=3,
-                     hands=replace(CONFIG.hands, source='mediapipe'))
-    with StreamingEngine(config, model) as engine:
-        results, ran = _geometry_frames(engine, frames, monkeypatch)
+    with StreamingEngine(_interval_config(), model) as engine:
+        calls = _counting_geometry(engine, monkeypatch)
+        results = _run(engine, frames)
         skipped = engine.statistics['frames_without_geometry']
+    ran = [r.frame_index for r in results if r.is_keyframe]
     assert [r.frame_index for r in results] == list(range(NUM_FRAMES))
-    assert ran[:2] == [0, 1] and ran == sorted(set(ran))
+    assert ran[:2] == [0, 1] and sum(calls) == len(ran)
     assert all(b - a <= 3 for a, b in zip(ran, ran[1:])) and ran[-1] >= NUM_FRAMES - 3
     assert skipped == NUM_FRAMES - len(ran) > 0
     for result in results:
         assert np.all(np.isfinite(result.camera_pose.matrix()))
-        if result.frame_index not in ran:
-            assert not result.is_keyframe and result.depth is None
-            assert result.tracking in ('tracked', 'predicted')
-            assert result.intrinsics == frames[result.frame_index].intrinsics
+        assert result.intrinsics == frames[result.frame_index].intrinsics
+        if not result.is_keyframe:
+            assert result.depth is None and result.tracking in ('tracked', 'predicted')
+
+
+def test_results_go_out_before_their_geometry_and_do_not_depend_on_catch_up(
+        model, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A frame due by the interval is answered first; catch_up() (or the next call) runs it.
+
+    Calling catch_up() after every push changes when the geometry branch runs, not what any
+    result is. (12 frames: the untrained model's depth asks for new references often, which
+    run the geometry branch first.)
+    """
+    frames = list(SyntheticSequence(SynthConfig(width=320, height=240), seed=5, num_frames=12))
+    with StreamingEngine(_interval_config(), model) as engine:
+        plain = _run(engine, frames)
+    with StreamingEngine(_interval_config(), model) as engine:
+        calls = _counting_geometry(engine, monkeypatch)
+        eager, in_catch_up = [], 0
+        for frame in frames:
+            eager += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+            before = len(calls)
+            engine.catch_up()
+            in_catch_up += len(calls) - before
+        eager += engine.flush()
+    assert in_catch_up > 0
+    assert len(plain) == len(eager) == len(frames)
+    for a, b in zip(plain, eager):
+        np.testing.assert_array_equal(a.camera_pose.matrix(), b.camera_pose.matrix())
+        assert (a.is_keyframe, a.tracking, len(a.hands)) == (b.is_keyframe, b.tracking,
+                                                             len(b.hands))
 
 
 @pytest.mark.parametrize('settings', [
-    {'hands': 'infinihand'}, {'mode': 'windowed', 'window': 4}, {'tracker': False},
-    {'camera_motion': 'static'}])
+    {'hands': replace(CONFIG.hands, source='infinihand')}, {'mode': 'windowed', 'window': 4},
+    {'tracker': replace(CONFIG.tracker, enabled=False)}, {'camera_motion': 'static'}])
 def test_geometry_runs_on_every_frame_where_a_frame_needs_it(
         model, frames: list, monkeypatch: pytest.MonkeyPatch, settings: dict) -> None:
     """The hand branch, windowed mode and an untracked camera need the model on each frame.
 
     (A fixed camera skips it by its own rule: on given intrinsics, every frame here.)
     """
-    config = replace(CONFIG, geometry_interval=3, hands=replace(
-        CONFIG.hands, source=settings.pop('hands', 'mediapipe')),
-        tracker=replace(CONFIG.tracker, enabled=settings.pop('tracker', True)), **settings)
-    with StreamingEngine(config, model) as engine:
-        results, ran = _geometry_frames(engine, frames, monkeypatch)
+    with StreamingEngine(_interval_config(**settings), model) as engine:
+        calls = _counting_geometry(engine, monkeypatch)
+        results = _run(engine, frames)
         skipped = engine.statistics['frames_without_geometry']
     assert len(results) == NUM_FRAMES
-    if config.camera_motion == 'static':
-        assert ran == [] and skipped == NUM_FRAMES
-    else:
-        assert ran == list(range(NUM_FRAMES)) and skipped == 0
+    static = settings.get('camera_motion') == 'static'
+    assert (sum(calls), skipped) == ((0, NUM_FRAMES) if static else (NUM_FRAMES, 0))
+
+
+def test_a_failed_geometry_after_the_answer_is_counted_and_runs_first_next(
+        model, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Non-finite outputs in catch_up(): counted, nothing raised; the next frame runs it first."""
+    frames = list(SyntheticSequence(SynthConfig(width=320, height=240), seed=5, num_frames=12))
+    with StreamingEngine(_interval_config(), model) as engine:
+        run_geometry = engine.model.run_geometry
+        failed = []
+
+        def fail(*args: object, **kwargs: object) -> object:
+            failed.append(True)
+            raise ModelOutputError('non-finite outputs')
+
+        for frame in frames:
+            engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+            if engine._owed is not None and not failed:
+                monkeypatch.setattr(engine.model, 'run_geometry', fail)
+                engine.catch_up()
+                monkeypatch.setattr(engine.model, 'run_geometry', run_geometry)
+                assert engine.statistics['geometry_failures'] == 1
+                assert engine.pose_track.tracker.needs_depth
+            else:
+                engine.catch_up()
+        assert failed == [True]
+        assert engine.statistics['geometry_failures'] == 1

@@ -93,12 +93,14 @@ def test_camera_tracking_counts_and_new_untracked_frames_warn() -> None:
 
 
 def test_model_work_skipped_is_counted() -> None:
-    """Frames that ran the depth head and frames a fixed camera passed without the geometry."""
-    engine = {**ENGINE, 'frames_with_depth': 12, 'frames_without_geometry': 80}
+    """Frames that ran the depth head, frames without the geometry branch, its failures."""
+    engine = {**ENGINE, 'frames_with_depth': 12, 'frames_without_geometry': 80,
+              'geometry_failures': 1}
+    keys = ('frames_with_depth', 'frames_without_geometry', 'geometry_failures')
     values = dict(diagnostic_report(RUNNING, engine, 5.0, RUNNING).values)
-    assert (values['frames_with_depth'], values['frames_without_geometry']) == ('12', '80')
+    assert tuple(values[key] for key in keys) == ('12', '80', '1')
     values = dict(diagnostic_report(RUNNING, ENGINE, 5.0, RUNNING).values)
-    assert (values['frames_with_depth'], values['frames_without_geometry']) == ('0', '0')
+    assert tuple(values[key] for key in keys) == ('0', '0', '0')
 
 
 def test_stale_before_the_first_image() -> None:

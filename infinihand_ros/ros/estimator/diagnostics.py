@@ -108,7 +108,8 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
           for state in TRACKING_STATES),
         ('tracker_ms_per_frame', _tracker_ms(engine_statistics)),
         ('frames_with_depth', engine_statistics.get('frames_with_depth', 0)),
-        ('frames_without_geometry', engine_statistics.get('frames_without_geometry', 0)))
+        ('frames_without_geometry', engine_statistics.get('frames_without_geometry', 0)),
+        ('geometry_failures', engine_statistics.get('geometry_failures', 0)))
     text = tuple((key, _format(value)) for key, value in values)
     if snapshot.received == 0:
         return DiagnosticReport(STALE, 'waiting for images', text)

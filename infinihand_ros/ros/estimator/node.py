@@ -213,8 +213,10 @@ class EstimatorNode(Node):
     def _run_inference(self) -> None:
         """Take the newest image, run it through the pipeline, publish; until closed.
 
-        While no image comes, the BA node's corrections are still applied (a stream that paused
-        or ended right after a keyframe gets its refinement).
+        After publishing, the engine catches up on the geometry a frame answered first still
+        owes (``StreamingEngine.catch_up``), while no image is being processed. While no image
+        comes, the BA node's corrections are still applied (a stream that paused or ended
+        right after a keyframe gets its refinement).
         """
         while not self._slot.closed:
             item = self._slot.take(TAKE_TIMEOUT_S)
@@ -223,6 +225,7 @@ class EstimatorNode(Node):
                     self._fold_in_corrections()
                 else:
                     self._process(*item)
+                    self.engine.catch_up()
             except RuntimeError:  # rclpy's RCLError: SIGINT invalidated the context mid-publish
                 if self.context.ok():
                     raise
