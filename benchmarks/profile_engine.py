@@ -19,8 +19,10 @@ built and serialised as rclpy's publishers do, nothing sent).
 Nested stages are indented under their parent. Per stage it prints milliseconds per frame
 (total time / frames) and the calls; the main thread's wall time per frame is printed beside
 it, with how many frames ran the depth head and how many skipped the geometry branch (a fixed
-camera). In windowed mode the hand branch runs in the engine's worker thread, overlapping the
-next window's geometry, so its stages do not add up to the wall time. For the global attention
+camera, or between a moving camera's geometry frames: ``engine.geometry_interval``, which
+applies with ``--hand-source mediapipe``). In windowed mode the hand branch runs in the
+engine's worker thread, overlapping the next window's geometry, so its stages do not add up to
+the wall time. For the global attention
 it also prints the keys each query frame attends over (the memory it sees plus itself).
 Figures only; nothing is asserted.
 """

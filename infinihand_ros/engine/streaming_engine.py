@@ -440,8 +440,9 @@ class StreamingEngine:
 
         The frame enters the streaming memory; the pose track takes its network pose and
         depth (``PoseTrack.absorb``), its hands are metric-scale samples (the frames between
-        give none) and its intrinsics hold for the frames after it. Non-finite outputs leave the memory as it was
-        and are counted (``geometry_failures``); the next frame then runs the geometry first.
+        give none) and its intrinsics hold for the frames after it. Non-finite outputs leave
+        the memory as it was and are counted (``geometry_failures``); the next frame then runs
+        the geometry first.
         """
         owed, self._owed = self._owed, None
         if owed is None:
