@@ -152,6 +152,7 @@ class StreamingEngine:
         # (index, source intrinsics, model-input intrinsics) of the last geometry frame
         self._geometry_seen: tuple[int, Intrinsics, Intrinsics] | None = None
         self._owed: CameraSpaceFrame | None = None  # a frame out before its geometry branch ran
+        self._owed_failed = False  # its geometry branch failed: first until one succeeds
         ba = self.config.bundle_adjustment
         blend_s = (self.config.pose_track.correction_blend_s if ba is None
                    else ba.corrections.blend_s)
@@ -416,7 +417,7 @@ class StreamingEngine:
         tracker = self.pose_track.tracker
         if (self.config.geometry_interval == 1 or self.config.mode != 'per_frame'
                 or not self._tracking or self._hand_source.uses_hand_branch or self._pending
-                or frame.index < self._anchor_frames or seen is None
+                or frame.index < self._anchor_frames or seen is None or self._owed_failed
                 or (tracker.needs_depth and tracker.lost)):
             return 'geometry'
         if (frame.index - seen[0] < self.config.geometry_interval and not tracker.needs_depth
@@ -442,7 +443,7 @@ class StreamingEngine:
         depth (``PoseTrack.absorb``), its hands are metric-scale samples (the frames between
         give none) and its intrinsics hold for the frames after it. Non-finite outputs leave
         the memory as it was and are counted (``geometry_failures``); the next frame then runs
-        the geometry first.
+        the geometry branch first (where a failure raises ``ModelOutputError``).
         """
         owed, self._owed = self._owed, None
         if owed is None:
@@ -456,7 +457,7 @@ class StreamingEngine:
                     self._detection, self._cpu_bf16, masks=False, depth=False)
         except ModelOutputError:
             self._counts['geometry_failures'] += 1
-            self.pose_track.tracker.needs_depth = True
+            self._owed_failed = True
             return
         record = split_geometry(geometry, poses, used, [frame], self.model.geometry)[0]
         record = dataclasses.replace(record, hands=owed.hands,
@@ -502,6 +503,7 @@ class StreamingEngine:
             self._last_stamp = self._accepted_stamp
             raise ModelOutputError(f'{self._checkpoint_name()}: {exc}') from exc
         self._accepted_stamp = frames[-1].timestamp_ns
+        self._owed_failed = False
         if self._decoder is None:
             future: Future = _done(self._hands(images, geometry, poses, used, frames))
         else:

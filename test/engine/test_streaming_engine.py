@@ -598,25 +598,32 @@ def test_geometry_runs_on_every_frame_where_a_frame_needs_it(
 
 def test_a_failed_geometry_after_the_answer_is_counted_and_runs_first_next(
         model, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Non-finite outputs in catch_up(): counted, nothing raised; the next frame runs it first."""
+    """Non-finite outputs in catch_up(): counted, nothing raised; the next frame runs it first.
+
+    There a failure raises ``ModelOutputError`` and the frame is not consumed, as on any
+    frame whose geometry branch comes first; frames keep running it first until it succeeds.
+    """
     frames = list(SyntheticSequence(SynthConfig(width=320, height=240), seed=5, num_frames=12))
+
+    def fail(*args: object, **kwargs: object) -> object:
+        raise ModelOutputError('non-finite outputs')
+
     with StreamingEngine(_interval_config(), model) as engine:
         run_geometry = engine.model.run_geometry
-        failed = []
-
-        def fail(*args: object, **kwargs: object) -> object:
-            failed.append(True)
-            raise ModelOutputError('non-finite outputs')
-
-        for frame in frames:
+        pushed = iter(frames)
+        for frame in pushed:
             engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
-            if engine._owed is not None and not failed:
-                monkeypatch.setattr(engine.model, 'run_geometry', fail)
-                engine.catch_up()
-                monkeypatch.setattr(engine.model, 'run_geometry', run_geometry)
-                assert engine.statistics['geometry_failures'] == 1
-                assert engine.pose_track.tracker.needs_depth
-            else:
-                engine.catch_up()
-        assert failed == [True]
+            if engine._owed is not None:
+                break
+        monkeypatch.setattr(engine.model, 'run_geometry', fail)
+        engine.catch_up()  # nothing raised
+        assert engine.statistics['geometry_failures'] == 1
+        frame = next(pushed)
+        with pytest.raises(ModelOutputError):
+            engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+        assert engine.statistics['frames_pushed'] == frame.index
+        monkeypatch.setattr(engine.model, 'run_geometry', run_geometry)
+        calls = _counting_geometry(engine, monkeypatch)
+        results = engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+        assert calls == [1] and [r.frame_index for r in results] == [frame.index]
         assert engine.statistics['geometry_failures'] == 1
