@@ -48,9 +48,11 @@ def render(source: np.ndarray, T_world_cam: np.ndarray) -> tuple[np.ndarray, np.
     return gray, (distance / (rays @ normal)).astype(np.float32)
 
 
-def view(gray: np.ndarray, depth: np.ndarray, boxes: np.ndarray | None = None) -> TrackingView:
-    return TrackingView(gray, lambda: depth, K, (0, 0, WIDTH, HEIGHT),
-                        np.zeros((0, 4)) if boxes is None else boxes)
+def view(gray: np.ndarray, depth: np.ndarray | None,
+         boxes: np.ndarray | None = None) -> TrackingView:
+    """Return the tracker's view of a frame (``depth`` None: a frame without the network)."""
+    return TrackingView(gray, None if depth is None else (lambda: depth), K,
+                        (0, 0, WIDTH, HEIGHT), np.zeros((0, 4)) if boxes is None else boxes)
 
 
 def true_pose(index: int) -> np.ndarray:
@@ -58,6 +60,13 @@ def true_pose(index: int) -> np.ndarray:
     angles = np.array([0.15, 0.3, 0.1]) * np.sin(index / 30.0)
     return make_transform(Rotation.from_euler('xyz', angles).as_matrix(),
                           np.array([0.004, -0.002, 0.003]) * index)
+
+
+def pan(index: int) -> np.ndarray:
+    """Return a panning camera path: about 29 degrees of yaw and 0.8 units over 120 frames."""
+    angles = np.array([0.05, 0.5, 0.05]) * np.sin(index / 40.0)
+    return make_transform(Rotation.from_euler('xyz', angles).as_matrix(),
+                          np.array([0.006, -0.002, 0.002]) * index)
 
 
 def drifting_network(index: int) -> np.ndarray:
@@ -199,11 +208,6 @@ def test_references_renewed_on_depth_of_varying_scale_keep_the_path() -> None:
     Each frame's depth is off by its own factor, as the network's is; carried points that were
     not rescaled to the new reference's depth would bend the path by several degrees.
     """
-    def pan(index: int) -> np.ndarray:
-        angles = np.array([0.05, 0.5, 0.05]) * np.sin(index / 40.0)
-        return make_transform(Rotation.from_euler('xyz', angles).as_matrix(),
-                              np.array([0.006, -0.002, 0.002]) * index)
-
     source = texture(0)
     tracker = CameraTracker(TrackerConfig())
     rng = np.random.default_rng(0)
@@ -229,11 +233,6 @@ def test_frames_without_network_pose_or_depth_are_tracked_and_renew_on_depth(
     is tracked without them too, and they come afterwards (``absorb``), as the engine does
     without BA. The path stays as exact as with depth on every frame.
     """
-    def pan(index: int) -> np.ndarray:
-        angles = np.array([0.05, 0.5, 0.05]) * np.sin(index / 40.0)
-        return make_transform(Rotation.from_euler('xyz', angles).as_matrix(),
-                              np.array([0.006, -0.002, 0.002]) * index)
-
     source = texture(0)
     tracker = CameraTracker(TrackerConfig())
     asked = renewals = 0
@@ -245,17 +244,15 @@ def test_frames_without_network_pose_or_depth_are_tracked_and_renew_on_depth(
         before = tracker._reference
         if geometry and after and index and not tracker.needs_depth:
             last_geometry = index
-            result = tracker.track(TrackingView(gray, None, K, (0, 0, WIDTH, HEIGHT),
-                                                np.zeros((0, 4))), None)
-            assert tracker.absorb(view(gray, depth), pan(index) @ drifting_network(0)) is None
+            result = tracker.track(view(gray, None), None)
+            assert tracker.absorb(view(gray, depth), pan(index)) is None
             assert not tracker.needs_depth
         elif geometry:
             last_geometry = index
-            result = tracker.track(view(gray, depth), pan(index) @ drifting_network(0))
+            result = tracker.track(view(gray, depth), pan(index))
             assert not tracker.needs_depth
         else:
-            result = tracker.track(TrackingView(gray, None, K, (0, 0, WIDTH, HEIGHT),
-                                                np.zeros((0, 4))), None)
+            result = tracker.track(view(gray, None), None)
             assert tracker._reference is before  # no renewal without depth
         renewals += before is not None and tracker._reference is not before
         translation_error, rotation_error = errors(result.T_raw, pan(index))
@@ -270,8 +267,7 @@ def test_a_frame_without_depth_that_loses_the_points_holds_the_pose_and_asks_for
     for index in range(3):
         gray, depth = render(source, true_pose(index))
         held = tracker.track(view(gray, depth), true_pose(index)).T_raw
-    covered = TrackingView(np.full_like(gray, 90), None, K, (0, 0, WIDTH, HEIGHT),
-                           np.zeros((0, 4)))
+    covered = view(np.full_like(gray, 90), None)
     result = tracker.track(covered, None)
     assert result.state == 'predicted' and tracker.needs_depth
     np.testing.assert_array_equal(result.T_raw, held)
@@ -284,8 +280,7 @@ def test_a_frame_without_depth_that_loses_the_points_holds_the_pose_and_asks_for
 def test_the_first_frame_needs_the_network_pose() -> None:
     gray, _ = render(texture(0), np.eye(4))
     with pytest.raises(ValueError, match='network pose'):
-        CameraTracker(TrackerConfig()).track(
-            TrackingView(gray, None, K, (0, 0, WIDTH, HEIGHT), np.zeros((0, 4))), None)
+        CameraTracker(TrackerConfig()).track(view(gray, None), None)
 
 
 def test_a_lost_frame_whose_geometry_comes_after_is_bridged_by_the_network() -> None:
@@ -296,8 +291,7 @@ def test_a_lost_frame_whose_geometry_comes_after_is_bridged_by_the_network() -> 
         gray, depth = render(source, true_pose(index))
         tracker.track(view(gray, depth), true_pose(index))
     covered = np.full_like(gray, 90)
-    result = tracker.track(TrackingView(covered, None, K, (0, 0, WIDTH, HEIGHT),
-                                        np.zeros((0, 4))), None)
+    result = tracker.track(view(covered, None), None)
     assert result.state == 'predicted'
     bridged = tracker.absorb(view(covered, depth), true_pose(3))
     assert errors(bridged, true_pose(3))[1] < 0.5 and tracker.needs_depth
@@ -305,5 +299,4 @@ def test_a_lost_frame_whose_geometry_comes_after_is_bridged_by_the_network() -> 
     result = tracker.track(view(gray, depth), true_pose(4))
     assert result.state == 'tracked' and errors(result.T_raw, true_pose(4))[1] < 0.5
     with pytest.raises(ValueError, match='depth'):
-        tracker.absorb(TrackingView(gray, None, K, (0, 0, WIDTH, HEIGHT), np.zeros((0, 4))),
-                       true_pose(4))
+        tracker.absorb(view(gray, None), true_pose(4))
