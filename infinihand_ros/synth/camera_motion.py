@@ -2,9 +2,11 @@
 
 A person stands at one side of the scene's table at eye height, walks a little along it (and
 towards or away from it) and looks at a gaze point that wanders over the near half of the table
-top, with some extra head turn and roll. Every motion is a sum of a few low-frequency sinusoids,
-so poses are smooth (no jumps). Poses are camera-to-world ``T_world_cam`` (4, 4) in the scene's
-world frame (z up, floor z = 0) with the OpenCV optical camera frame (x right, y down, z forward).
+top, with some extra head turn and roll. Every motion is a sum of a few low-frequency sinusoids, so
+poses are smooth (no jumps). ``look_at_hands`` then turns the head towards the hands in use, as
+people look at what their hands do (the arms hang from the body's trajectory). Poses are
+camera-to-world ``T_world_cam`` (4, 4) in the scene's world frame (z up, floor z = 0) with the
+OpenCV optical camera frame (x right, y down, z forward).
 """
 
 from dataclasses import dataclass
@@ -14,6 +16,7 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.synth.scene import Scene
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
 
 #: Default image size (width, height) in pixels.
@@ -62,6 +65,12 @@ class CameraMotionConfig:
         head_turn_deg: extra yaw and pitch excursion of the head about the gaze direction.
         roll_deg: head roll excursion.
         clearance_m: smallest distance from the camera to walls, the table and boxes (3D).
+        hand_gaze_share_range: how far the head turns from the table gaze towards the hands in
+            use (0: not at all, 1: onto them), drawn per sequence.
+        hand_gaze_lag_s: the head follows the hands smoothed over this (Gaussian sigma, s).
+        table_gaze_weight: weight of the table gaze beside each hand in use (weight 1 each).
+        hand_in_use_m: a hand is in use when its palm is at most this far below the eyes and
+            ahead of them by at least the second value (m); the third softens both limits.
 
     """
 
@@ -79,6 +88,10 @@ class CameraMotionConfig:
     head_turn_deg: float = 10.0
     roll_deg: float = 4.0
     clearance_m: float = 0.15
+    hand_gaze_share_range: tuple[float, float] = (0.6, 0.9)
+    hand_gaze_lag_s: float = 0.3
+    table_gaze_weight: float = 0.15
+    hand_in_use_m: tuple[float, float, float] = (0.6, 0.12, 0.04)
 
     def __post_init__(self) -> None:
         if self.standoff_range_m[0] <= self.max_depth_m:
@@ -273,6 +286,44 @@ def _gaze_points(scene: Scene, stand: _Stand, rest_lateral: float, gaze_depth: f
     gaze = edge_mid + lateral[:, None] * lateral_axis - depth[:, None] * outward
     gaze[:, 2] = scene.table_top_z
     return gaze
+
+
+def look_at_hands(rng: np.random.Generator, motion: CameraMotion, palms: list[np.ndarray],
+                  fps: float, config: CameraMotionConfig | None = None) -> np.ndarray:
+    """Turn the head of ``motion`` towards the hands in use: camera-to-world poses (T, 4, 4).
+
+    The head turns from where its optical axis meets the table-top plane towards the palms
+    (T, 3) of the hands in use (raised in front of the eyes; ``CameraMotionConfig.hand_in_use_m``):
+    by the palms' offsets from that point, weighted smoothly (the point itself weighs
+    ``table_gaze_weight``), smoothed over ``hand_gaze_lag_s`` and scaled by a per-sequence share.
+    It keeps its roll and its eye positions; with no hand in use the poses are the body's.
+    """
+    config = config or CameraMotionConfig()
+    body = motion.T_world_cam
+    eyes, axis = body[:, :3, 3], body[:, :3, 2]
+    reach = (motion.gaze_world[:, 2] - eyes[:, 2]) / np.minimum(axis[:, 2], -1e-3)
+    table_point = eyes + axis * np.clip(reach, 0.2, 2.0)[:, None]
+    forward = axis.copy()
+    forward[:, 2] = 0.0
+    forward /= np.maximum(np.linalg.norm(forward, axis=1, keepdims=True), 1e-9)
+    below, ahead, soft = config.hand_in_use_m
+    weights = [_sigmoid((palm[:, 2] - eyes[:, 2] + below) / soft)
+               * _sigmoid((np.sum((palm - eyes) * forward, axis=1) - ahead) / soft)
+               for palm in palms]
+    total = config.table_gaze_weight + sum(weights, np.zeros(len(eyes)))
+    offset = sum((w[:, None] * (p - table_point) for w, p in zip(weights, palms)),
+                 np.zeros_like(eyes)) / total[:, None]
+    offset = gaussian_filter1d(offset, config.hand_gaze_lag_s * fps, axis=0, mode='nearest')
+    share = rng.uniform(*config.hand_gaze_share_range)
+    roll = np.swapaxes(look_at(eyes, table_point), 1, 2) @ body[:, :3, :3]
+    poses = body.copy()
+    poses[:, :3, :3] = look_at(eyes, table_point + share * offset) @ roll
+    return poses
+
+
+def _sigmoid(x: np.ndarray) -> np.ndarray:
+    """Logistic function."""
+    return 0.5 * (1.0 + np.tanh(0.5 * x))
 
 
 def make_camera_trajectory(rng: np.random.Generator, scene: Scene, num_frames: int,

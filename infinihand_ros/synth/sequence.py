@@ -1,9 +1,10 @@
 """Synthetic egocentric sequences with exact ground truth, frame by frame.
 
-A ``SyntheticSequence`` draws a room, a head trajectory, intrinsics and two hands' motions from one
-seed, computes every hand joint once (batched forward kinematics of the built-in hand) and renders
-frames on demand. Ground truth uses the project's conventions: the world frame is the first
-camera's (OpenCV optical), poses are camera-to-world, joints are in OpenPose order, metres.
+A ``SyntheticSequence`` draws a room, a body trajectory, intrinsics and two hands' motions from one
+seed, computes every hand joint once (batched forward kinematics of the built-in hand), turns the
+head (the camera) towards the hands in use and renders frames on demand. Ground truth uses the
+project's conventions: the world frame is the first camera's (OpenCV optical), poses are
+camera-to-world, joints are in OpenPose order, metres.
 """
 
 from dataclasses import dataclass
@@ -35,6 +36,8 @@ import torch
 #: Stamp of frame 0 (2026-01-01T00:00:00Z), so bags carry plausible absolute times.
 START_TIME_NS: Final = 1_767_225_600_000_000_000
 HAND_CHOICES: Final = {'both': (LEFT, RIGHT), 'left': (LEFT,), 'right': (RIGHT,)}
+#: The wrist and the four knuckles: their mean is where the head looks at a hand.
+PALM_JOINTS: Final = (0, 5, 9, 13, 17)
 
 
 @dataclass(frozen=True)
@@ -142,19 +145,24 @@ class SyntheticSequence:
         self.num_frames = num_frames
         rng = np.random.default_rng(seed)
         self.scene = make_scene(rng)
-        self.T_scene_cams = camera_motion.make_camera_trajectory(
-            rng, self.scene, num_frames, config.fps)
+        motion = camera_motion.sample_camera_motion(rng, self.scene, num_frames, config.fps)
+        #: The body's trajectory (eyes at rest gaze): hands reach from it, arms hang from it.
+        self.T_scene_body = motion.T_world_cam
         self.intrinsics = Intrinsics.from_matrix(
             camera_motion.sample_intrinsics(rng, config.width, config.height),
             config.width, config.height)
-        self.T_world_scene = geometry.invert_transform(self.T_scene_cams[0])
         betas, skin = hand_motion.sample_hand_appearance(rng)
         self.arm_style = arms.sample_arm_style(rng)
         self.tracks = tuple(
-            hand_motion.make_hand_track(rng, self.scene, side, self.T_scene_cams, config.fps,
+            hand_motion.make_hand_track(rng, self.scene, side, self.T_scene_body, config.fps,
                                         betas, skin, self.arm_style)
             for side in HAND_CHOICES[config.hands])
         self.joints_scene = tuple(self._forward(track) for track in self.tracks)
+        #: The camera (the head, turned towards the hands in use).
+        self.T_scene_cams = camera_motion.look_at_hands(
+            rng, motion, [joints[:, PALM_JOINTS].mean(axis=1) for joints in self.joints_scene],
+            config.fps)
+        self.T_world_scene = geometry.invert_transform(self.T_scene_cams[0])
         self._options = RenderOptions(noise_sigma=config.noise_sigma,
                                       motion_blur_px=config.motion_blur_px,
                                       jpeg_quality=config.jpeg_quality)
@@ -186,11 +194,11 @@ class SyntheticSequence:
         """Render frame ``index`` and assemble its ground truth."""
         if not 0 <= index < self.num_frames:
             raise InputError(f'frame index {index} outside 0..{self.num_frames - 1}')
-        T_scene_cam = self.T_scene_cams[index]
+        T_scene_cam, T_scene_body = self.T_scene_cams[index], self.T_scene_body[index]
         style = self.arm_style
         geometries = [
             HandGeometry(side=t.side, joints_world=j[index], radii=t.radii, skin_rgb=t.skin_rgb,
-                         arm=ArmGeometry(arms.arm_points(j[index][0], T_scene_cam, t.side, style),
+                         arm=ArmGeometry(arms.arm_points(j[index][0], T_scene_body, t.side, style),
                                          style.radii_m, style.sleeve_rgb))
             for t, j in zip(self.tracks, self.joints_scene)]
         # Noise depends on (seed, index) only, so any frame renders the same in any order.

@@ -5,6 +5,7 @@ from infinihand_ros.core.errors import InputError
 from infinihand_ros.synth.camera_motion import CameraMotionConfig
 from infinihand_ros.synth.camera_motion import FOV_RANGE_DEG
 from infinihand_ros.synth.camera_motion import look_at
+from infinihand_ros.synth.camera_motion import look_at_hands
 from infinihand_ros.synth.camera_motion import make_camera_trajectory
 from infinihand_ros.synth.camera_motion import sample_camera_motion
 from infinihand_ros.synth.camera_motion import sample_intrinsics
@@ -100,6 +101,53 @@ def test_camera_looks_down_at_the_table(scene: Scene, motions: list) -> None:
         pixels = in_cam[:, :2] / in_cam[:, 2:] * k[0, 0] + k[:2, 2]
         assert np.all(in_cam[:, 2] > 0.3)
         assert np.all((pixels > 0) & (pixels < [518, 378]))
+
+
+def _palms(motion, down_m: np.ndarray, ahead_m: float = 0.35, side_m: float = 0.1) -> np.ndarray:
+    """Palm positions (T, 3) fixed relative to the body's horizontal heading."""
+    eyes = motion.T_world_cam[:, :3, 3]
+    forward = motion.T_world_cam[:, :3, 2] * [1.0, 1.0, 0.0]
+    forward /= np.linalg.norm(forward, axis=1, keepdims=True)
+    left = np.cross([0.0, 0.0, 1.0], forward)
+    return eyes + ahead_m * forward + side_m * left - down_m[:, None] * [0.0, 0.0, 1.0]
+
+
+def _off_centre(poses: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Angle (degrees) between each camera's optical axis and the direction to its point."""
+    rays = points - poses[:, :3, 3]
+    cosine = np.sum(rays * poses[:, :3, 2], axis=1) / np.linalg.norm(rays, axis=1)
+    return np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0)))
+
+
+def test_head_turns_towards_raised_hands_and_keeps_its_eyes(motions: list) -> None:
+    for seed, motion in enumerate(motions):
+        palms = _palms(motion, np.full(FRAMES, 0.3))
+        poses = look_at_hands(np.random.default_rng(seed), motion, [palms], FPS)
+        np.testing.assert_array_equal(poses[:, :3, 3], motion.T_world_cam[:, :3, 3])
+        rotations = poses[:, :3, :3]
+        np.testing.assert_allclose(np.einsum('tji,tjk->tik', rotations, rotations),
+                                   np.broadcast_to(np.eye(3), rotations.shape), atol=1e-9)
+        body, head = _off_centre(motion.T_world_cam, palms), _off_centre(poses, palms)
+        assert np.all(head < body) and np.median(head) < 0.6 * np.median(body)
+
+
+def test_hands_at_rest_leave_the_body_gaze(motions: list) -> None:
+    for seed, motion in enumerate(motions):
+        low = _palms(motion, np.full(FRAMES, 1.2))  # hanging by the body
+        behind = _palms(motion, np.full(FRAMES, 0.3), ahead_m=-0.5)
+        poses = look_at_hands(np.random.default_rng(seed), motion, [low, behind], FPS)
+        np.testing.assert_allclose(poses, motion.T_world_cam, atol=1e-5)
+
+
+def test_head_follows_hands_smoothly_as_they_rise_and_drop(motions: list) -> None:
+    down = 0.625 + 0.375 * np.sin(np.pi * np.arange(FRAMES) / FPS)  # 0.25-1 m, 2 s period
+    for seed, motion in enumerate(motions):
+        poses = look_at_hands(np.random.default_rng(seed), motion, [_palms(motion, down)], FPS)
+        rotations = poses[:, :3, :3]
+        assert _relative_angles_deg(rotations[1:], rotations[:-1]).max() < 6.0
+        steps = Rotation.from_matrix(rotations[1:] @ np.swapaxes(rotations[:-1], 1, 2))
+        acceleration = np.linalg.norm(np.diff(steps.as_rotvec(), axis=0), axis=1)
+        assert np.degrees(acceleration).max() < 2.0  # degrees per frame, per frame
 
 
 def test_trajectory_is_deterministic_per_seed(scene: Scene) -> None:

@@ -61,7 +61,7 @@ def test_hands_in_sequences_continue_their_forearms() -> None:
         for track, joints in zip(sequence.tracks, sequence.joints_scene):
             for index in range(0, 90, 3):
                 wrist, _, elbow, _ = arms.arm_points(joints[index][0],
-                                                     sequence.T_scene_cams[index], track.side,
+                                                     sequence.T_scene_body[index], track.side,
                                                      sequence.arm_style)
                 forearm = (wrist - elbow) / np.linalg.norm(wrist - elbow)
                 fingers = joints[index][9] - joints[index][0]  # wrist to middle knuckle
