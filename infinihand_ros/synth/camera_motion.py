@@ -18,6 +18,7 @@ from infinihand_ros.synth.scene import Scene
 import numpy as np
 from scipy.ndimage import gaussian_filter1d
 from scipy.spatial.transform import Rotation
+from scipy.special import expit
 
 #: Default image size (width, height) in pixels.
 DEFAULT_WIDTH: Final = 518
@@ -307,8 +308,8 @@ def look_at_hands(rng: np.random.Generator, motion: CameraMotion, palms: list[np
     forward[:, 2] = 0.0
     forward /= np.maximum(np.linalg.norm(forward, axis=1, keepdims=True), 1e-9)
     below, ahead, soft = config.hand_in_use_m
-    weights = [_sigmoid((palm[:, 2] - eyes[:, 2] + below) / soft)
-               * _sigmoid((np.sum((palm - eyes) * forward, axis=1) - ahead) / soft)
+    weights = [expit((palm[:, 2] - eyes[:, 2] + below) / soft)
+               * expit((np.sum((palm - eyes) * forward, axis=1) - ahead) / soft)
                for palm in palms]
     total = config.table_gaze_weight + sum(weights, np.zeros(len(eyes)))
     offset = sum((w[:, None] * (p - table_point) for w, p in zip(weights, palms)),
@@ -319,11 +320,6 @@ def look_at_hands(rng: np.random.Generator, motion: CameraMotion, palms: list[np
     poses = body.copy()
     poses[:, :3, :3] = look_at(eyes, table_point + share * offset) @ roll
     return poses
-
-
-def _sigmoid(x: np.ndarray) -> np.ndarray:
-    """Logistic function."""
-    return 0.5 * (1.0 + np.tanh(0.5 * x))
 
 
 def make_camera_trajectory(rng: np.random.Generator, scene: Scene, num_frames: int,
