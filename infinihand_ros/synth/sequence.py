@@ -146,7 +146,8 @@ class SyntheticSequence:
         rng = np.random.default_rng(seed)
         self.scene = make_scene(rng)
         motion = camera_motion.sample_camera_motion(rng, self.scene, num_frames, config.fps)
-        #: The body's trajectory (eyes at rest gaze): hands reach from it, arms hang from it.
+        #: The body's trajectory (before the head turns to the hands): hands reach from it, and
+        #: the arms hang from it.
         self.T_scene_body = motion.T_world_cam
         self.intrinsics = Intrinsics.from_matrix(
             camera_motion.sample_intrinsics(rng, config.width, config.height),
