@@ -22,8 +22,8 @@ it, with how many frames ran the depth head and how many skipped the geometry br
 camera, or between a moving camera's geometry frames: ``engine.geometry_interval``, which
 applies with ``--hand-source mediapipe``). In windowed mode the hand branch runs in the
 engine's worker thread, overlapping the next window's geometry, so its stages do not add up to
-the wall time. For the global attention
-it also prints the keys each query frame attends over (the memory it sees plus itself).
+the wall time. For the global attention it also prints the keys each query frame attends over
+(the memory it sees plus itself).
 Figures only; nothing is asserted.
 """
 

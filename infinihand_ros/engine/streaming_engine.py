@@ -205,11 +205,9 @@ class StreamingEngine:
             self._last_stamp = frame.timestamp_ns
             self._pay_geometry()
             route = self._route(frame)
-            if route == 'tracked':
-                frame = dataclasses.replace(frame, keyframe=False)
-            elif self._ba is not None and frame.keyframe:
-                frame = dataclasses.replace(frame, source_image=image.copy())
             if route == 'geometry':
+                if self._ba is not None and frame.keyframe:  # BA reads the keyframe's image
+                    frame = dataclasses.replace(frame, source_image=image.copy())
                 self._pending.append(frame)
                 if len(self._pending) >= self._block_size():
                     self._run_block()
@@ -218,11 +216,12 @@ class StreamingEngine:
             if route == 'static':  # no model input: the geometry branch is not needed
                 self._decoding.append(_done(self._without_geometry(frame)))
             else:
+                if route == 'tracked':  # enters no streaming memory
+                    frame = dataclasses.replace(frame, keyframe=False)
+                    self._counts['frames_without_geometry'] += 1
                 record = self._tracked_only(frame)
                 self._decoding.append(_done([record]))
-                if route == 'tracked':
-                    self._counts['frames_without_geometry'] += 1
-                else:
+                if route == 'tracked_first':
                     self._owed = record
             return self._collect(wait=False)
 
