@@ -9,9 +9,11 @@ from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.engine.output.config import ShapeConfig
 from infinihand_ros.engine.output.shape import reshape_hand
 from infinihand_ros.engine.output.shape import ShapeConsensus
+from infinihand_ros.engine.world_placement import place_in_world
 from infinihand_ros.mano.builtin import BuiltinHandModel
 import numpy as np
 from result_builders import make_hand
+from scipy.spatial.transform import Rotation
 import torch
 
 
@@ -58,3 +60,24 @@ def test_reshape_keeps_the_wrist_and_takes_the_shared_shape() -> None:
     assert np.abs(joints_shared - joints_shared[0] - (joints - joints[0])).max() > 1e-4
     same = reshape_hand(hand, np.zeros(10), model)
     np.testing.assert_allclose(same.joints_cam, hand.joints_cam, atol=1e-12)
+
+
+def test_reshape_in_the_world_frame_matches_the_model_there() -> None:
+    """With world-frame params too, the world joints become the model's for the shared betas."""
+    model = BuiltinHandModel(RIGHT, dtype=torch.float64)
+    pose = CameraPose(Rotation.from_rotvec([0.3, -0.5, 0.2]).as_matrix(),
+                      np.array([1.0, 2.0, 0.5]))
+    hand, _ = _model_hand(model, np.zeros(10), pose)
+    hand = place_in_world((hand,), pose)[0]
+    shared = np.linspace(-1.0, 1.0, 10)
+    reshaped = reshape_hand(hand, shared, model)
+    with torch.inference_mode():
+        world = model(*(torch.as_tensor(value[None]) for value in (
+            reshaped.mano_world.global_orient, reshaped.mano_world.hand_pose, shared,
+            reshaped.mano_world.transl))).joints[0].double().numpy()
+    np.testing.assert_allclose(reshaped.joints_world[0], hand.joints_world[0], atol=1e-12)
+    np.testing.assert_allclose(reshaped.joints_world - reshaped.joints_world[0],
+                               world - world[0], atol=1e-9)
+    np.testing.assert_allclose(reshaped.joints_world, pose.to_world(reshaped.joints_cam),
+                               atol=1e-9)
+    np.testing.assert_array_equal(reshaped.mano_world.betas, shared)

@@ -5,7 +5,9 @@ the betas of hands at least ``min_confidence`` confident (weighted by confidence
 ``min_samples`` of them the side's shape is fixed and ``reshape_hand`` gives every later hand of
 that side this shape. The reshaping changes only the shape part of the joints: the root-relative
 joints of the hand model with the shared betas replace those with the frame's betas, with the
-wrist, pose and orientation kept, in both the camera and the world frame.
+wrist, pose and orientation kept, in both the camera and the world frame (the same change,
+turned by the rotation between the two frames' orientations). The float64 built-in skeleton is
+posed in numpy (``data/mano_fit.model_joints``), so this costs little per hand.
 """
 
 from dataclasses import replace
@@ -15,10 +17,11 @@ from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.hand_conventions import NUM_BETAS
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.hand_conventions import WRIST
+from infinihand_ros.data.mano_fit import model_joints
 from infinihand_ros.engine.output.config import ShapeConfig
 from infinihand_ros.mano.base import HandModel
 import numpy as np
-import torch
+from scipy.spatial.transform import Rotation
 
 
 class ShapeConsensus:
@@ -52,16 +55,11 @@ class ShapeConsensus:
         return self._sums[side] / self._weights[side]
 
 
-def _root_relative(model: HandModel, params: ManoParams, betas: np.ndarray) -> np.ndarray:
-    """Return (2, 21, 3) joints minus the wrist for the params' betas and for ``betas``."""
-    def batch(value: np.ndarray) -> torch.Tensor:
-        return torch.as_tensor(np.stack([value, value]), dtype=torch.float64)
-
-    with torch.inference_mode():
-        joints = model(batch(params.global_orient), batch(params.hand_pose),
-                       torch.as_tensor(np.stack([params.betas, betas]), dtype=torch.float64),
-                       batch(params.transl)).joints.to(torch.float64).cpu().numpy()
-    return joints - joints[:, WRIST:WRIST + 1]
+def _shape_change(model: HandModel, params: ManoParams, betas: np.ndarray) -> np.ndarray:
+    """Return the (21, 3) change of the root-relative joints from the params' to ``betas``."""
+    own = model_joints(model, params)
+    shared = model_joints(model, replace(params, betas=np.asarray(betas, dtype=np.float64)))
+    return (shared - shared[WRIST]) - (own - own[WRIST])
 
 
 def reshape_hand(hand: HandState, betas: np.ndarray, model: HandModel) -> HandState:
@@ -70,15 +68,17 @@ def reshape_hand(hand: HandState, betas: np.ndarray, model: HandModel) -> HandSt
     Args:
         hand: a hand with camera-frame (and, if present, world-frame) MANO params and joints.
         betas: (10,) the shape to give it.
-        model: the hand model of ``hand.side`` (the engine's).
+        model: the hand model of ``hand.side`` (float64 for the fast path).
 
     """
-    own, shared = _root_relative(model, hand.mano_cam, betas)
-    joints_cam = hand.joints_cam + (shared - own)
+    change = _shape_change(model, hand.mano_cam, betas)
+    joints_cam = hand.joints_cam + change
     mano_cam = replace(hand.mano_cam, betas=betas)
     if hand.mano_world is None or hand.joints_world is None:
         return replace(hand, joints_cam=joints_cam, mano_cam=mano_cam)
-    own, shared = _root_relative(model, hand.mano_world, betas)
+    # Root-relative joints turn with the orientation: world = R_world R_cam^T camera.
+    turn = (Rotation.from_rotvec(hand.mano_world.global_orient)
+            * Rotation.from_rotvec(hand.mano_cam.global_orient).inv()).as_matrix()
     return replace(hand, joints_cam=joints_cam, mano_cam=mano_cam,
-                   joints_world=hand.joints_world + (shared - own),
+                   joints_world=hand.joints_world + change @ turn.T,
                    mano_world=replace(hand.mano_world, betas=betas))

@@ -9,6 +9,7 @@ not the old scene's hand at the same pixels.
 """
 
 from collections.abc import Sequence
+import copy
 from dataclasses import replace
 
 from infinihand_ros.core.datatypes import FrameResult
@@ -19,15 +20,17 @@ from infinihand_ros.engine.output.shape import reshape_hand
 from infinihand_ros.engine.output.shape import ShapeConsensus
 from infinihand_ros.engine.output.smoothing import HandSmoother
 from infinihand_ros.mano.base import HandModel
+import torch
 
 
 class OutputStage:
     """Identity, shared shape and smoothing of a stream's results (one caller, in order)."""
 
     def __init__(self, config: OutputConfig, hand_models: Sequence[HandModel]) -> None:
-        """Start with no tracks, samples or filter state; ``hand_models`` by side."""
+        """Start with no tracks, samples or filter state; ``hand_models`` by side (copied)."""
         self.config = config
-        self.hand_models = hand_models
+        # float64 copies: the built-in skeleton is then posed in numpy (``reshape_hand``)
+        self.hand_models = [copy.deepcopy(model).to(torch.float64) for model in hand_models]
         self.identity = HandIdentityTracker(config.identity)
         self.shape = ShapeConsensus(config.shape)
         self.smoother = HandSmoother(config.smoothing)
