@@ -16,10 +16,13 @@ image mode detects up to two hands (its palm detector, as the video mode would);
 frame a one-hand graph follows one of them (tracking only) and a second one-hand graph looks at
 the image with that hand blanked out, on every frame while it follows a second hand and on every
 ``search_interval``-th frame otherwise (its palm detector runs only then). A hand the first
-graph loses is detected again in the same frame.
+graph loses is detected again in the same frame. The second graph runs beside the first (in a
+helper thread; MediaPipe lets go of the GIL), so it looks at the image with the first hand's box
+of the previous image blanked: on two cores a frame costs about one graph's time.
 """
 
 from collections.abc import Sequence
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import replace
 from typing import Final
 
@@ -87,8 +90,12 @@ class MediaPipeDetector:
         self._search = self._start(max_num_hands=2, static=True) if searching else None
         self._first = self._start(max_num_hands=1) if searching else None
         self._second = self._start(max_num_hands=1) if searching else None
+        # The second graph runs beside the first while both follow a hand.
+        self._helper = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='mediapipe_second')
+                        if searching else None)
         self._had_hand = False  # the last image had a hand: the first graph follows it
         self._second_tracked = False  # the second graph follows a hand
+        self._first_box: np.ndarray | None = None  # the first graph's hand in the last image
         self._since_search = 0
         self._histogram: np.ndarray | None = None
         self.scene_cuts = 0
@@ -128,18 +135,24 @@ class MediaPipeDetector:
         """Return MediaPipe's hands in ``image``, a second one searched for only at intervals."""
         if self._pair is not None:
             return self._pair.detect(image, frame_index)
+        due = self._second_tracked or self._since_search + 1 >= self.config.search_interval
+        beside = (self._helper.submit(self._second.detect, blank_box(image, self._first_box),
+                                      frame_index)
+                  if self._had_hand and due else None)  # the second graph, beside the first
         found = self._first.detect(image, frame_index) if self._had_hand else []
+        seconds = [] if beside is None else beside.result()
         if not found:  # nothing followed, or lost since the last image: detect in this one
             found = self._search.detect(image, frame_index)
             self._had_hand, self._second_tracked = bool(found), len(found) > 1
+            self._first_box = landmark_box(found[0].joints_2d) if found else None
             self._since_search = 0
             return found
-        self._since_search += 1
-        if not self._second_tracked and self._since_search < self.config.search_interval:
+        box = self._first_box = landmark_box(found[0].joints_2d)
+        if beside is None:
+            self._since_search += 1
             return found
         self._since_search = 0
-        box = landmark_box(found[0].joints_2d)
-        others = [hand for hand in self._second.detect(blank_box(image, box), frame_index)
+        others = [hand for hand in seconds
                   if box_iou(box, landmark_box(hand.joints_2d)) <= SAME_HAND_IOU]
         self._second_tracked = bool(others)
         return [*found, *others]
@@ -160,10 +173,13 @@ class MediaPipeDetector:
                 graph.close()
             self._first, self._second = self._start(max_num_hands=1), self._start(max_num_hands=1)
         self._had_hand = self._second_tracked = False
+        self._first_box = None
         self._since_search = 0
 
     def close(self) -> None:
         """Release MediaPipe."""
+        if self._helper is not None:
+            self._helper.shutdown(wait=True)
         for graph in (self._pair, self._first, self._second, self._search):
             if graph is not None:
                 graph.close()
