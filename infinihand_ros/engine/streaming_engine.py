@@ -21,7 +21,9 @@ tracker holds the camera is also tracked from the image first and its result goe
 the geometry branch then runs on it in ``catch_up()`` (a live caller's idle time after
 publishing) or at the start of the next call, so results do not depend on when it runs. A hand
 source that reads images (MediaPipe) does so in its own thread, in push order, while the model
-runs on the frame.
+runs on the frame. For a fixed camera a live caller can start it earlier, when the image arrives
+(``detect_ahead``): the hands of the next frame are then read while the last one is still being
+finished and published.
 
 The first ``anchor_frames`` frames are held back and processed together (the paper's anchor
 context), in both modes. After that, per-frame mode runs each frame as it arrives; windowed mode
@@ -32,7 +34,8 @@ inside a window is causal, so both modes give the same per-frame results.
 
 Threading contract: one caller at a time. ``push``, ``flush``, ``reset`` and ``close`` raise
 ``EngineStateError`` when called while another thread is inside one of them, and after
-``close()``; nothing is consumed then.
+``close()``; nothing is consumed then. ``detect_ahead`` alone may be called from another thread
+(an image callback) while they run.
 """
 
 from collections import deque
@@ -132,6 +135,9 @@ class StreamingEngine:
         # The hand source reads each image in its own thread, beside the model (in order).
         self._detector = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_detect')
                           if self._hand_source.needs_image else None)
+        # Detections started at the images' arrival (detect_ahead), by stamp.
+        self._ahead: dict[int, Future] = {}
+        self._ahead_lock = threading.Lock()
         self._guard = threading.Lock()
         self._closed = False
         self._start_sequence()
@@ -225,6 +231,53 @@ class StreamingEngine:
                     self._owed = record
             return self._collect(wait=False)
 
+    @property
+    def detects_ahead(self) -> bool:
+        """Return whether ``detect_ahead`` starts anything (a fixed camera, MediaPipe hands)."""
+        return self.static and self._detector is not None
+
+    def detect_ahead(self, image: np.ndarray, timestamp_ns: int) -> bool:
+        """Start reading the hands of an image that will be pushed next; return whether it did.
+
+        For a live caller with a fixed camera (``detects_ahead``): call it when the image
+        arrives, from any thread, then ``push`` it as usual; its hand source's detection has
+        been running since (in order with the other images'). Detections of images never
+        pushed (replaced by newer ones) are dropped at the next push. An image not newer than
+        every image pushed or read ahead, or any after ``close()``, is not started (False).
+        """
+        if not self.detects_ahead or self._closed:
+            return False
+        try:
+            image = check_image(image)
+        except InputError:
+            return False  # push reports it
+        with self._ahead_lock:
+            last = self._last_stamp
+            if (last is not None and timestamp_ns <= last) or any(
+                    stamp >= timestamp_ns for stamp in self._ahead):
+                return False
+            try:
+                self._ahead[timestamp_ns] = self._detector.submit(
+                    self._hand_source.detect, image.copy(), self._frames_pushed)
+            except RuntimeError:  # the worker shut down meanwhile (close)
+                return False
+        return True
+
+    def _detection_of(self, image: np.ndarray, timestamp_ns: int, index: int) -> Future | None:
+        """Return the frame's hand detection: started ahead for its stamp, else started now.
+
+        Detections started ahead for older stamps (images never pushed) are dropped.
+        """
+        if self._detector is None:
+            return None
+        with self._ahead_lock:
+            ahead = self._ahead.pop(timestamp_ns, None)
+            for stamp in [stamp for stamp in self._ahead if stamp < timestamp_ns]:
+                del self._ahead[stamp]
+        if ahead is not None:
+            return ahead
+        return self._detector.submit(self._hand_source.detect, image.copy(), index)
+
     def catch_up(self) -> None:
         """Run the geometry branch a frame whose result went out first still owes (if any).
 
@@ -312,7 +365,10 @@ class StreamingEngine:
             self._drain()
             if self._ba is not None:
                 self._ba.reset()
-            self._hand_source.reset()
+            if self._detector is None:
+                self._hand_source.reset()
+            else:  # in its thread: a detection started ahead meanwhile may be running there
+                self._detector.submit(self._hand_source.reset).result()
             self._start_sequence()
 
     def close(self) -> None:
@@ -374,8 +430,7 @@ class StreamingEngine:
         index = self._frames_pushed
         after_anchors = index - self._anchor_frames
         keyframe = after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0
-        detections = (None if self._detector is None else
-                      self._detector.submit(self._hand_source.detect, image.copy(), index))
+        detections = self._detection_of(image, stamp, index)
         return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, None,
                              detections)
 
@@ -551,6 +606,8 @@ class StreamingEngine:
             self._decoding.popleft().exception()
         self._pending.clear()
         self._owed = None
+        with self._ahead_lock:
+            self._ahead.clear()
         if self._detector is not None:  # one worker, in order: this runs after the queued ones
             self._detector.submit(lambda: None).result()
 

@@ -627,3 +627,64 @@ def test_a_failed_geometry_after_the_answer_is_counted_and_runs_first_next(
         results = engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
         assert calls == [1] and [r.frame_index for r in results] == [frame.index]
         assert engine.statistics['geometry_failures'] == 1
+
+
+def _fixed_camera_config() -> EngineConfig:
+    """Return CONFIG for a fixed camera with MediaPipe hands (the teleop case)."""
+    return replace(CONFIG, camera_motion='static',
+                   hands=replace(CONFIG.hands, source='mediapipe'))
+
+
+def test_hands_read_ahead_for_a_fixed_camera_give_the_same_results(model) -> None:
+    """detect_ahead as each image arrives (another thread, while the last is pushed): same results.
+
+    Only a fixed camera with MediaPipe hands reads ahead; a moving camera does not.
+    """
+    frames = list(SyntheticSequence(SynthConfig(width=320, height=240), seed=5, num_frames=12))
+    with StreamingEngine(_fixed_camera_config(), model) as engine:
+        plain = _run(engine, frames)
+    started = []
+    with StreamingEngine(_fixed_camera_config(), model) as engine:
+        assert engine.detects_ahead
+        started.append(engine.detect_ahead(frames[0].rgb, frames[0].timestamp_ns))
+        ahead = []
+        for frame, following in zip(frames, frames[1:] + [None]):
+            arrival = threading.Thread(target=lambda image: started.append(engine.detect_ahead(
+                image.rgb, image.timestamp_ns)), args=(following,)) if following else None
+            if arrival is not None:
+                arrival.start()
+            ahead += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+            if arrival is not None:
+                arrival.join()
+        ahead += engine.flush()
+    assert started == [True] * len(frames)
+    assert sum(len(result.hands) for result in plain) > 0
+    assert len(plain) == len(ahead) == len(frames)
+    for a, b in zip(plain, ahead):
+        assert [hand.side for hand in a.hands] == [hand.side for hand in b.hands]
+        for hand_a, hand_b in zip(a.hands, b.hands):
+            np.testing.assert_array_equal(hand_a.joints_world, hand_b.joints_world)
+    with StreamingEngine(_interval_config(), model) as moving:
+        assert not moving.detects_ahead
+        assert not moving.detect_ahead(frames[0].rgb, frames[0].timestamp_ns)
+
+
+def test_hands_read_ahead_of_images_never_pushed_are_dropped(model, frames: list,
+                                                             monkeypatch) -> None:
+    """Images replaced before their push: their detections are not reused, nor older ones read."""
+    with StreamingEngine(_fixed_camera_config(), model) as engine:
+        source = engine._hand_source
+        detections = []
+        detect = source.detect
+        monkeypatch.setattr(source, 'detect', lambda image, index: (
+            detections.append(index), detect(image, index))[1])
+        assert all(engine.detect_ahead(frame.rgb, frame.timestamp_ns) for frame in frames[:5])
+        assert not engine.detect_ahead(frames[2].rgb, frames[2].timestamp_ns)  # older
+        results = engine.push(frames[4].rgb, frames[4].timestamp_ns, frames[4].intrinsics)
+        assert len(detections) == 5  # the pushed image's own detection, read ahead
+        assert not engine.detect_ahead(frames[4].rgb, frames[4].timestamp_ns)  # pushed already
+        results += engine.push(frames[5].rgb, frames[5].timestamp_ns, frames[5].intrinsics)
+        results += engine.flush()
+        assert len(detections) == 6  # frames[5] was not read ahead: detected in its push
+    assert [result.timestamp_ns for result in results] == [frames[4].timestamp_ns,
+                                                           frames[5].timestamp_ns]

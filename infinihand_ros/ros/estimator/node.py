@@ -3,22 +3,25 @@
 A thin adapter: message -> ``image_decoding`` / ``camera_info_pairing`` -> ``StreamingEngine``
 (estimation and the output stage every consumer shares) -> ``OutputPublishers``. The image
 callbacks only put the message into a one-frame mailbox (``LatestFrameSlot``); a dedicated
-inference thread takes the newest one, so frames arriving while the model is busy are dropped
-and counted and the latency never grows. A bad frame (encoding, size, truncated data, bad
-CameraInfo) is logged, throttled, counted and skipped; so is an image whose stamp is not after
-the last accepted image's (late or repeated: the engine needs increasing stamps), checked before
-it can replace a waiting frame and again before it is decoded. An image stamped more than
-``camera.restart_after_s`` before the last accepted one (a replay looping, a camera restarting,
-normal stamps after a far-future one) starts a new stream instead: the engine resets (a new
-world frame, pose track and BA), the camera path and the stream's CameraInfos start afresh, and
-the image is the new stream's first; one warning and ``stream_restarts`` say so. Inputs
-(relative, remappable): ``image``, ``image/compressed``, ``camera_info``, with sensor-data QoS
-overridable by parameters. Bundle adjustment runs by default in the engine's background worker
-process (``engine.bundle_adjustment: in_process``); no frame waits for it, and its corrections
-move later poses. With ``engine.bundle_adjustment: node`` the engine's ``RemoteBA`` backend
-offers keyframes and takes corrections, and ``BANodeClient`` carries them to and from the
-bundle-adjustment node (corrections are folded in before each frame and while no frame comes);
-without that node the poses go on unrefined and diagnostics say so.
+inference thread takes the newest one, so frames arriving while the model is busy are dropped and
+counted and the latency never grows. With a fixed camera and MediaPipe hands (the teleop case) the
+callback also decodes the image and starts its hand detection at once
+(``StreamingEngine.detect_ahead``), so it runs while the last frame is still being finished. A bad
+frame (encoding, size, truncated data, bad CameraInfo) is logged, throttled, counted and skipped;
+so is an image whose stamp is not after the last accepted image's (late or repeated: the engine
+needs increasing stamps), checked before it can replace a waiting frame and again before it is
+decoded. An image stamped more than ``camera.restart_after_s`` before the last accepted one (a
+replay looping, a camera restarting, normal stamps after a far-future one) starts a new stream
+instead: the engine resets (a new world frame, pose track and BA), the camera path and the stream's
+CameraInfos start afresh, and the image is the new stream's first; one warning and
+``stream_restarts`` say so. Inputs (relative, remappable): ``image``, ``image/compressed``,
+``camera_info``, with sensor-data QoS overridable by parameters. Bundle adjustment is off by
+default (``engine.bundle_adjustment: none``); with ``in_process`` it runs in the engine's
+background worker process, no frame waits for it, and its corrections move later poses. With
+``engine.bundle_adjustment: node`` the engine's ``RemoteBA`` backend offers keyframes and takes
+corrections, and ``BANodeClient`` carries them to and from the bundle-adjustment node (corrections
+are folded in before each frame and while no frame comes); without that node the poses go on
+unrefined and diagnostics say so.
 
 ``main`` runs it with ``node_process.run_node``: SIGINT and SIGTERM (rclpy's signal handlers)
 end the spin, the inference thread and the engine are stopped, and the process exits 0. A bad
@@ -26,6 +29,7 @@ parameter or checkpoint stops it at start-up with one error line naming it, exit
 """
 
 from collections import OrderedDict
+import contextlib
 import copy
 import sys
 import threading
@@ -60,6 +64,7 @@ from infinihand_ros.ros.estimator.publishers import OutputPublishers
 from infinihand_ros.ros.node_process import parse_command_line
 from infinihand_ros.ros.node_process import run_node
 from infinihand_ros.ros.parameters import declare_parameters
+import numpy as np
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.qos_overriding_options import QoSOverridingOptions
@@ -99,7 +104,8 @@ class EstimatorNode(Node):
                                           self.config.camera.fallback)
         self._pairing_lock = threading.Condition()
         self._paired_once = False
-        self._slot: LatestFrameSlot[tuple[Any, int]] = LatestFrameSlot()
+        # (message, arrival ns, its RGB image when decoded on arrival for detect_ahead)
+        self._slot: LatestFrameSlot[tuple[Any, int, np.ndarray | None]] = LatestFrameSlot()
         self._arrivals: OrderedDict[int, int] = OrderedDict()  # image stamp -> arrival, ns
         # Stamp of the last image the engine took, ns; written by the inference thread only.
         self._last_accepted_ns: int | None = None
@@ -143,12 +149,20 @@ class EstimatorNode(Node):
         """Keep only the newest image; count the one it replaces as dropped.
 
         An image out of order is skipped here already, so it never replaces a waiting one.
+        Where the engine reads hands ahead, the image is decoded here and its detection
+        started (a bad image is left for the inference thread to report).
         """
         now = self._now_ns()
         self.statistics.frame_received(now / NS_PER_S)
-        if self._stamp_step(msg, ns_from_stamp(msg.header.stamp)) is StampStep.OUT_OF_ORDER:
+        stamp_ns = ns_from_stamp(msg.header.stamp)
+        if self._stamp_step(msg, stamp_ns) is StampStep.OUT_OF_ORDER:
             return
-        if self._slot.put((msg, now)):
+        rgb = None
+        if self.engine.detects_ahead:
+            with contextlib.suppress(InputError):
+                rgb = decode_image(msg)
+                self.engine.detect_ahead(rgb, stamp_ns)
+        if self._slot.put((msg, now, rgb)):
             self.statistics.frame_dropped()
 
     def _stamp_step(self, msg: Image | CompressedImage, stamp_ns: int) -> StampStep:
@@ -231,8 +245,9 @@ class EstimatorNode(Node):
                     raise
                 return
 
-    def _process(self, msg: Image | CompressedImage, arrival_ns: int) -> None:
-        """Decode, pair with intrinsics, run the pipeline and publish one image."""
+    def _process(self, msg: Image | CompressedImage, arrival_ns: int,
+                 rgb: np.ndarray | None) -> None:
+        """Decode (unless done on arrival), pair with intrinsics, run the pipeline, publish."""
         stamp_ns = ns_from_stamp(msg.header.stamp)
         step = self._stamp_step(msg, stamp_ns)  # an image may have been accepted since the put
         if step is StampStep.OUT_OF_ORDER:
@@ -243,7 +258,7 @@ class EstimatorNode(Node):
         while len(self._arrivals) > ARRIVALS_KEPT:
             self._arrivals.popitem(last=False)
         try:
-            rgb = decode_image(msg)
+            rgb = decode_image(msg) if rgb is None else rgb
             choice = self._intrinsics_for(stamp_ns, rgb.shape[1], rgb.shape[0])
             results = self.engine.push(rgb, stamp_ns, choice.intrinsics)
             self._last_accepted_ns = stamp_ns
