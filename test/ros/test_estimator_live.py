@@ -15,9 +15,11 @@ from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.bag.reader import BagReader
 from infinihand_ros.core.hand_conventions import JOINT_NAMES
+from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.output_fields import hand_output
 from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.ros.estimator.config import CameraSettings
 from infinihand_ros.ros.estimator.config import EngineSelection
 from infinihand_ros.ros.estimator.config import EstimatorConfig
 from infinihand_ros.ros.estimator.engine_setup import engine_config_for
@@ -112,8 +114,8 @@ def _model_fov_stamps(recorded_infos: list) -> set[int]:
                                rtol=1e-9, atol=0.0)}
 
 
-def _offline(stamps: list[int], model_fov: set[int]) -> list:
-    """Run the node's engine offline on the bag frames with these stamps.
+def _offline(stamps: list[int], model_fov: set[int], motion: str = 'estimate') -> list:
+    """Run the node's engine (``camera.motion``: ``motion``) offline on the frames with ``stamps``.
 
     Frames in ``model_fov`` get no intrinsics (the model's field of view), as they did live.
     On one torch thread, as the node (``ros_env`` sets ``OMP_NUM_THREADS=1``): with another
@@ -121,7 +123,8 @@ def _offline(stamps: list[int], model_fov: set[int]) -> list:
     hand box by a pixel and the hand by centimetres.
     """
     # The node's defaults (config/estimator.yaml is made from them) but BA, as the node ran.
-    config = EstimatorConfig(engine=EngineSelection(bundle_adjustment=NO_BA))
+    config = EstimatorConfig(engine=EngineSelection(bundle_adjustment=NO_BA),
+                             camera=CameraSettings(motion=motion))
     wanted = set(stamps)
     outputs = []
     threads = torch.get_num_threads()
@@ -203,3 +206,59 @@ def test_sample_bag_through_the_live_node(tmp_path: Path) -> None:
         if hand is not None:
             got = np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses])
             np.testing.assert_allclose(got, hand.landmarks_world, atol=OFFLINE_TOLERANCE)
+
+
+def _landmarks(msg) -> np.ndarray:
+    """Return a landmarks message's (N, 3) positions."""
+    return np.array([[p.position.x, p.position.y, p.position.z] for p in msg.poses])
+
+
+def test_a_fixed_camera_reads_hands_on_arrival_and_matches_the_engine_offline(
+        tmp_path: Path) -> None:
+    """camera.motion static: each image's hands are read from its arrival (detect_ahead).
+
+    Replayed at 5 images/s the node processes every frame in order, so its hands equal the
+    engine's offline on the same frames; the camera stays the world frame.
+    """
+    env = ros_env(fresh_domain_id())
+    lossless = tmp_path / 'lossless_input.yaml'
+    lossless.write_text(LOSSLESS_INPUT)
+    params = ['--params-file', str(SHARE / 'config' / 'estimator.yaml'),
+              '--params-file', str(lossless), '-p', f'engine.bundle_adjustment:={NO_BA}',
+              '-p', 'camera.motion:=static']
+    node_log = tmp_path / 'estimator.log'
+    with running('estimator', ['--ros-args', *params, *REMAPS], env, node_log) as node, \
+            running('record', ['-o', str(tmp_path / 'out'), *OUTPUTS], env,
+                    tmp_path / 'record.log') as recorder:
+        assert wait_for_text(node_log, READY, node, 120.0), node_log.read_text()
+        replay = start('replay', [str(SAMPLE_BAG), '--rate', '0.5', '--wait-for-subscribers',
+                                  '20', '--delay', '1', '--topics', '/camera/image_raw/compressed',
+                                  '/camera/camera_info'], env, tmp_path / 'replay.log')
+        assert replay.wait(180) == 0, (tmp_path / 'replay.log').read_text()
+        time.sleep(3.0)  # the last frame's publication
+        assert interrupt(node) == 0, node_log.read_text()
+        assert interrupt(recorder) == 0, (tmp_path / 'record.log').read_text()
+    recorded = _recorded(tmp_path / 'out')
+    poses = recorded[f'{NODE}/camera_pose']
+    stamps = [ns_from_stamp(m.header.stamp) for m in poses]
+    values = {v.key: v.value for v in recorded['/diagnostics'][-1].status[0].values}
+    assert int(values['frames_dropped']) == 0 and len(stamps) == int(values['frames_received'])
+    assert len(stamps) == len(list(read_camera_frames(SAMPLE_BAG)))
+    for msg in poses:
+        pose = msg.pose
+        np.testing.assert_allclose([pose.position.x, pose.position.y, pose.position.z,
+                                    pose.orientation.x, pose.orientation.y, pose.orientation.z,
+                                    pose.orientation.w], [0, 0, 0, 0, 0, 0, 1], atol=1e-12)
+    offline = {out.timestamp_ns: out for out in _offline(
+        stamps, _model_fov_stamps(recorded[f'{NODE}/camera_info']), motion='static')}
+    found = 0
+    for side, topic in ((LEFT, f'{NODE}/hands/left/landmarks'),
+                        (RIGHT, f'{NODE}/hands/right/landmarks')):
+        for msg in recorded[topic]:
+            hand = offline[ns_from_stamp(msg.header.stamp)].hand(side)
+            assert len(msg.poses) == (0 if hand is None else 21)
+            if hand is not None:
+                found += 1
+                np.testing.assert_allclose(_landmarks(msg), hand_output(hand).landmarks_world,
+                                           atol=OFFLINE_TOLERANCE)
+    assert found >= len(stamps) // 2
