@@ -22,6 +22,8 @@ shape and twist in a few L-BFGS steps. For one frame's hand ``model_joints`` and
 pose the float64 built-in skeleton in numpy: torch's cost per call would dominate.
 """
 
+from collections.abc import Sequence
+import copy
 from dataclasses import dataclass
 import time
 from typing import Final
@@ -369,6 +371,11 @@ def _kabsch(source: np.ndarray, target: np.ndarray) -> np.ndarray:
 def _posed_in_numpy(model: HandModel) -> bool:
     """Return whether ``model`` is the float64 built-in skeleton, which is posed in numpy."""
     return type(model) is BuiltinHandModel and model.rest_offsets.dtype == torch.float64
+
+
+def float64_copies(models: Sequence[HandModel]) -> list[HandModel]:
+    """Return float64 copies of hand models: the built-in skeleton's are then posed in numpy."""
+    return [copy.deepcopy(model).to(torch.float64) for model in models]
 
 
 def _skeleton_joints(model: BuiltinHandModel, betas: np.ndarray,

@@ -12,7 +12,6 @@ confidence.
 
 from collections import deque
 from collections.abc import Sequence
-import copy
 from typing import Final
 
 from infinihand_ros.core.datatypes import HandState
@@ -22,6 +21,7 @@ from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.hand_conventions import WRIST
 from infinihand_ros.data.keypoint_source import Detection2D
+from infinihand_ros.data.mano_fit import float64_copies
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
@@ -31,7 +31,6 @@ from infinihand_ros.engine.hands.lift import lift_hand
 from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.mano.base import HandModel
 import numpy as np
-import torch
 
 #: Two same-labelled hands overlapping more than this (IoU), or with wrists closer than
 #: ``DUPLICATE_WRIST_FRACTION`` of the hand's box size, are one hand seen twice.
@@ -81,7 +80,7 @@ class MediaPipeHandSource:
 
         """
         self.config = config
-        self._models = [copy.deepcopy(model).to(torch.float64) for model in hand_models]
+        self._models = float64_copies(hand_models)
         self._detector = MediaPipeDetector(config)
         self._previous: dict[int, ManoParams] = {}
         self.counts = {'frames': 0, 'hands': 0, 'dropped_confidence': 0,

@@ -9,18 +9,17 @@ not the old scene's hand at the same pixels.
 """
 
 from collections.abc import Sequence
-import copy
 from dataclasses import replace
 
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.datatypes import HandState
+from infinihand_ros.data.mano_fit import float64_copies
 from infinihand_ros.engine.output.config import OutputConfig
 from infinihand_ros.engine.output.identity import HandIdentityTracker
 from infinihand_ros.engine.output.shape import reshape_hand
 from infinihand_ros.engine.output.shape import ShapeConsensus
 from infinihand_ros.engine.output.smoothing import HandSmoother
 from infinihand_ros.mano.base import HandModel
-import torch
 
 
 class OutputStage:
@@ -29,8 +28,7 @@ class OutputStage:
     def __init__(self, config: OutputConfig, hand_models: Sequence[HandModel]) -> None:
         """Start with no tracks, samples or filter state; ``hand_models`` by side (copied)."""
         self.config = config
-        # float64 copies: the built-in skeleton is then posed in numpy (``reshape_hand``)
-        self.hand_models = [copy.deepcopy(model).to(torch.float64) for model in hand_models]
+        self.hand_models = float64_copies(hand_models)  # posed in numpy by ``reshape_hand``
         self.identity = HandIdentityTracker(config.identity)
         self.shape = ShapeConsensus(config.shape)
         self.smoother = HandSmoother(config.smoothing)
