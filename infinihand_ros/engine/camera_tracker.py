@@ -26,12 +26,15 @@ fallback), and whatever needs depth (a new reference, a restart) waits for a fra
 tracker is ``lost``). When the geometry branch runs on a frame after its answer went out,
 ``absorb`` takes its network pose and depth as if they had come with it: a renewal due there
 happens on them, and a frame the tracker lost takes the network's motion (for the frames after
-it).
+it). They may come after a later frame was tracked without them (the engine runs the geometry
+branch one frame late): ``moment()``, taken right after the frame, holds what ``absorb`` then
+needs, and the renewal happens at that frame, as if the later one had not been seen.
 """
 
 from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
+from dataclasses import replace
 import time
 from typing import Final
 
@@ -151,6 +154,28 @@ class TrackedFrame:
     inliers: int
 
 
+@dataclass(frozen=True)
+class TrackerMoment:
+    """The tracker right after one frame, for ``CameraTracker.absorb`` after later frames.
+
+    Attributes:
+        frames: frames tracked up to it (``CameraTracker.frames``).
+        view: the frame the reference's points were in then.
+        T_raw: the frame's pose.
+        reference: the reference as it was then (its points' pixels in ``view``).
+        lost: the frame was not tracked.
+        needs_depth: a renewal or restart waited for depth there.
+
+    """
+
+    frames: int
+    view: TrackingView
+    T_raw: np.ndarray
+    reference: '_Reference | None'
+    lost: bool
+    needs_depth: bool
+
+
 @dataclass
 class _Reference:
     """The frame the points were lifted in, and where they are now."""
@@ -176,7 +201,7 @@ class CameraTracker:
     def reset(self) -> None:
         """Forget the reference and the counts (a new stream)."""
         self._reference: _Reference | None = None
-        self._last_gray: np.ndarray | None = None
+        self._last_view: TrackingView | None = None  # the last frame the points are in
         self._previous: tuple[np.ndarray, np.ndarray] | None = None  # (T_raw, T_network)
         self._last_T_raw: np.ndarray | None = None
         self._lost = 0  # frames in a row without tracking
@@ -217,26 +242,61 @@ class CameraTracker:
         """Return whether the last frame was not tracked (its pose is the prior)."""
         return self._lost > 0
 
-    def absorb(self, view: TrackingView, T_network: np.ndarray) -> np.ndarray | None:
-        """Take the network pose and depth of the frame just tracked without them.
+    def moment(self) -> TrackerMoment:
+        """Return the tracker as it is now, right after a frame (for a later ``absorb``)."""
+        if self._last_T_raw is None:
+            raise ValueError('CameraTracker.moment: no frame tracked yet')
+        reference = None if self._reference is None else replace(self._reference)
+        return TrackerMoment(self.frames, self._last_view, self._last_T_raw, reference,
+                             self._lost > 0, self.needs_depth)
 
-        ``view`` is that frame's view with its depth. A renewal due on the frame happens now;
-        a frame the tracker lost is bridged by the network's motion, as when its geometry came
+    def absorb(self, view: TrackingView, T_network: np.ndarray,
+               moment: TrackerMoment | None = None) -> np.ndarray | None:
+        """Take the network pose and depth of a frame tracked without them.
+
+        ``view`` is that frame's view with its depth; ``moment`` the tracker right after it
+        (``moment()``) when later frames were tracked since, None for the frame just tracked.
+        A renewal due on the frame happens now, on it (the next frame is followed from it); a
+        frame the tracker lost is bridged by the network's motion, as when its geometry came
         first (its pose is returned then, else None), and the next frame still needs depth.
         """
         if view.depth is None or self._last_T_raw is None:
             raise ValueError('CameraTracker.absorb: needs a tracked frame and its depth')
         start = time.perf_counter()
+        moment = self.moment() if moment is None else moment
+        latest = moment.frames == self.frames
         T_network = np.asarray(T_network, dtype=np.float64)
-        bridged = None
-        if self._lost:
-            bridged = self._last_T_raw = self._prior(T_network)
-        elif self.needs_depth and self._reference is not None:
-            self._renew(self._reference, view, self._last_T_raw)
+        T_raw, bridged = moment.T_raw, None
+        if moment.lost:
+            bridged = T_raw = self._prior(T_network)
+            if latest:
+                self._last_T_raw = T_raw
+        elif moment.needs_depth and moment.reference is not None:
+            since = self._last_view  # a frame tracked after it, if it is not moment.view
+            self._renew(moment.reference, view, T_raw)
             self.needs_depth = False
-        self._previous = (self._last_T_raw, T_network)
+            if since is not moment.view:
+                self._follow_into(since)
+        self._previous = (T_raw, T_network)
         self.seconds += time.perf_counter() - start
         return bridged
+
+    def _follow_into(self, view: TrackingView) -> None:
+        """Move a new reference's points into a later frame already tracked, at its pose.
+
+        The reference is re-anchored so that the points give that frame the pose it was
+        given (the track goes on from it without a jump); where too few points hold, it keeps
+        its own pose.
+        """
+        reference = self._reference
+        moved, survivors = self._follow(reference, view)
+        solved = (self._solve(reference, view, moved, survivors, self._last_T_raw)
+                  if survivors.sum() >= self.config.min_inliers else None)
+        if solved is None:
+            reference.points, reference.pixels = reference.points[survivors], moved[survivors]
+        else:  # _solve kept the inliers
+            reference.T_raw = self._last_T_raw @ solved[0]
+        self._last_view = view
 
     def _track(self, view: TrackingView | None, prior: np.ndarray) -> TrackedFrame:
         if not self.config.enabled or view is None:
@@ -253,8 +313,9 @@ class CameraTracker:
         if alive >= self.config.min_inliers:
             solved = self._solve(reference, view, moved, survivors, prior)
             if solved is not None:
-                T_raw, inliers = solved
-                self._last_gray = view.gray
+                T_current_reference, inliers = solved
+                T_raw = reference.T_raw @ invert_transform(T_current_reference)
+                self._last_view = view
                 self._lost = 0
                 if inliers < max(self.config.refresh_fraction * reference.count,
                                  self.config.min_inliers):
@@ -291,9 +352,10 @@ class CameraTracker:
         if not len(reference.pixels):
             return np.zeros((0, 2), np.float32), np.zeros(0, dtype=bool)
         start = reference.pixels.reshape(-1, 1, 2)
-        moved, found, _ = cv2.calcOpticalFlowPyrLK(self._last_gray, view.gray, start, None,
+        last = self._last_view.gray
+        moved, found, _ = cv2.calcOpticalFlowPyrLK(last, view.gray, start, None,
                                                    **self._lk)
-        back, found_back, _ = cv2.calcOpticalFlowPyrLK(view.gray, self._last_gray, moved, None,
+        back, found_back, _ = cv2.calcOpticalFlowPyrLK(view.gray, last, moved, None,
                                                        **self._lk)
         moved = moved.reshape(-1, 2)
         error = np.linalg.norm(back.reshape(-1, 2) - reference.pixels, axis=1)
@@ -305,7 +367,10 @@ class CameraTracker:
 
     def _solve(self, reference: _Reference, view: TrackingView, moved: np.ndarray,
                survivors: np.ndarray, prior: np.ndarray) -> tuple[np.ndarray, int] | None:
-        """Return (pose, inliers) by PnP on the surviving points, or None when it fails."""
+        """Return (reference-to-frame transform, inliers) by PnP on the surviving points.
+
+        None when it fails.
+        """
         points = reference.points[survivors].astype(np.float64)
         pixels = moved[survivors].astype(np.float64)
         matrix = view.intrinsics.matrix()
@@ -330,7 +395,7 @@ class CameraTracker:
         keep = np.flatnonzero(survivors)[inliers]
         reference.points = reference.points[keep]
         reference.pixels = moved[keep]
-        return reference.T_raw @ invert_transform(T_current_reference), len(inliers)
+        return T_current_reference, len(inliers)
 
     def _renew(self, reference: _Reference, view: TrackingView, T_raw: np.ndarray) -> None:
         """Make ``view`` (at ``T_raw``) the reference: the points held, then new corners."""
@@ -385,7 +450,7 @@ class CameraTracker:
         """Make ``view`` the reference at pose ``T_raw``, with its lifted corners."""
         self._reference = _Reference(np.array(T_raw, dtype=np.float64), points, pixels,
                                      len(points), _sharpness(view.gray))
-        self._last_gray = view.gray
+        self._last_view = view
         self._lost = 0
 
 

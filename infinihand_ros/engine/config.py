@@ -33,6 +33,7 @@ ENGINE_SECTION: Final = 'engine'
 MODES: Final = ('per_frame', 'windowed')
 CAMERA_MOTIONS: Final = ('estimate', 'static')
 CPU_PRECISIONS: Final = ('auto', 'fp32')
+GEOMETRY_LAGS: Final = (0, 1)
 
 
 def check_device(name: str, key: str = 'engine.device') -> None:
@@ -144,6 +145,12 @@ class EngineConfig:
             intrinsics. Without BA, a frame whose tracker holds the camera is answered before
             its geometry branch runs (``StreamingEngine.catch_up``). 1: every frame, geometry
             first (the reference path).
+        geometry_lag: for such a frame answered first, 0: the pose track takes its geometry
+            branch's outputs before the next frame (``catch_up`` runs it in the caller's
+            thread); 1: one frame later (the next frame is tracked from the image too), so a
+            live caller's ``catch_up`` runs it in a worker thread, paused while a frame is
+            pushed, and the next frame's answer does not wait for it (lower latency; slightly
+            less exact tracking, as a new tracker reference comes a frame later).
         device: torch device ('cpu', 'cuda', 'cuda:1', ...), checked at load.
         cpu_precision: on the CPU, 'auto' runs the aggregator in bf16 where the CPU computes
             bf16 natively (AVX512-BF16 or AMX, checked at start-up; float32 elsewhere), 'fp32'
@@ -174,6 +181,7 @@ class EngineConfig:
     window: int = 16
     keyframe_interval: int = 1
     geometry_interval: int = 1
+    geometry_lag: int = 0
     device: str = 'cpu'
     cpu_precision: str = 'fp32'
     model: ModelSelection = field(default_factory=ModelSelection)
@@ -201,6 +209,9 @@ class EngineConfig:
                          keyframe_interval=self.keyframe_interval,
                          geometry_interval=self.geometry_interval)
         require_at_least('engine', 0, static_intrinsics_frames=self.static_intrinsics_frames)
+        if self.geometry_lag not in GEOMETRY_LAGS:
+            raise ConfigError(f'engine.geometry_lag must be one of {list(GEOMETRY_LAGS)}, got '
+                              f'{self.geometry_lag!r}')
         check_device(self.device)
 
 

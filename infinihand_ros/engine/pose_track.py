@@ -32,6 +32,7 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.geometry import invert_transform
 from infinihand_ros.engine.camera_tracker import CameraTracker
 from infinihand_ros.engine.camera_tracker import TrackerConfig
+from infinihand_ros.engine.camera_tracker import TrackerMoment
 from infinihand_ros.engine.camera_tracker import TrackingView
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.metric_scale import MetricScaleEstimator
@@ -162,14 +163,16 @@ class PoseTrack:
             self._entries.popitem(last=False)
         return tracked.state
 
-    def absorb(self, frame_index: int, T_network: np.ndarray, view: TrackingView) -> None:
-        """Take the network pose (4, 4) and view with depth of the frame just added without.
+    def absorb(self, frame_index: int, T_network: np.ndarray, view: TrackingView,
+               moment: TrackerMoment | None = None) -> None:
+        """Take the network pose (4, 4) and view with depth of a frame added without.
 
-        For a frame whose geometry ran after its answer went out (``CameraTracker.absorb``);
+        For a frame whose geometry ran after its answer went out (``CameraTracker.absorb``;
+        ``moment``: the tracker right after that frame, when later frames were added since);
         a frame the tracker lost takes the network's motion in the track.
         """
         T_network = self._world_from_network @ np.array(T_network, dtype=np.float64)
-        bridged = self.tracker.absorb(view, T_network)
+        bridged = self.tracker.absorb(view, T_network, moment)
         entry = self._entries.get(frame_index)
         if bridged is not None and entry is not None:
             self._entries[frame_index] = _Entry(entry.timestamp_ns, bridged, entry.tracking)

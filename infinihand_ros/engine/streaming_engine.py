@@ -19,7 +19,12 @@ where it lost the camera); every other frame is tracked from the image alone, wi
 intrinsics, and carries no depth. Without BA, a frame due for the geometry branch while the
 tracker holds the camera is also tracked from the image first and its result goes out at once;
 the geometry branch then runs on it in ``catch_up()`` (a live caller's idle time after
-publishing) or at the start of the next call, so results do not depend on when it runs. A hand
+publishing) or at the start of the next call, and the pose track takes its outputs before the
+next frame. With ``geometry_lag: 1`` they come one frame later: the next frame is tracked from
+the image too, and they are taken in before the frame after it (or before a frame that needs
+them first: the tracker lost the camera, the metric scale still warms up); ``catch_up()`` then
+starts the branch in a worker thread, paused whenever a call is inside the engine, so the next
+frame's answer does not wait for it. Results do not depend on when it runs. A hand
 source that reads images (MediaPipe) does so in its own thread, in push order, while the model
 runs on the frame. For a fixed camera a live caller can start it earlier, when the image arrives
 (``detect_ahead``): the hands of the next frame are then read while the last one is still being
@@ -32,10 +37,10 @@ a worker thread, so the geometry of the next window overlaps the hands of this o
 4.4). At most one window is in the worker: the next one waits for it (bounded memory). Attention
 inside a window is causal, so both modes give the same per-frame results.
 
-Threading contract: one caller at a time. ``push``, ``flush``, ``reset`` and ``close`` raise
-``EngineStateError`` when called while another thread is inside one of them, and after
-``close()``; nothing is consumed then. ``detect_ahead`` alone may be called from another thread
-(an image callback) while they run.
+Threading contract: one caller at a time. ``push``, ``flush``, ``reset``, ``catch_up`` and
+``close`` raise ``EngineStateError`` when called while another thread is inside one of them, and
+after ``close()``; nothing is consumed then. ``detect_ahead`` alone may be called from another
+thread (an image callback) while they run.
 """
 
 from collections import deque
@@ -64,6 +69,7 @@ from infinihand_ros.engine.camera_space import PreparedFrame
 from infinihand_ros.engine.camera_space import split_frames
 from infinihand_ros.engine.camera_space import split_geometry
 from infinihand_ros.engine.camera_space import tracking_view
+from infinihand_ros.engine.camera_tracker import TrackerMoment
 from infinihand_ros.engine.camera_tracker import TrackingView
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
@@ -85,6 +91,63 @@ from infinihand_ros.model.io.bundled import hand_depth_correction
 from infinihand_ros.model.io.bundled import resolve_checkpoint
 import numpy as np
 import torch
+
+
+@dataclasses.dataclass
+class _Owed:
+    """A frame whose result went out before its geometry branch ran.
+
+    Attributes:
+        record: its record without geometry (hands, tracking view).
+        moment: the tracker right after the frame.
+        run: its geometry branch in the worker thread (``catch_up``), None until started.
+
+    """
+
+    record: CameraSpaceFrame
+    moment: TrackerMoment | None = None
+    run: Future | None = None
+
+
+class _Gate:
+    """Holds the geometry worker at block boundaries while a caller is inside the engine."""
+
+    def __init__(self) -> None:
+        """Start open, with no worker thread known."""
+        self._condition = threading.Condition()
+        self._callers = 0
+        self.worker: int | None = None  # the worker thread's ident
+
+    @contextlib.contextmanager
+    def closed(self) -> Iterator[None]:
+        """Hold the worker at its next boundary while inside."""
+        with self._condition:
+            self._callers += 1
+        try:
+            yield
+        finally:
+            with self._condition:
+                self._callers -= 1
+                self._condition.notify_all()
+
+    @contextlib.contextmanager
+    def opened(self) -> Iterator[None]:
+        """Let the worker run while inside (a caller waiting for it)."""
+        with self._condition:
+            self._callers -= 1
+            self._condition.notify_all()
+        try:
+            yield
+        finally:
+            with self._condition:
+                self._callers += 1
+
+    def boundary(self, *unused: object) -> None:
+        """Wait here, in the worker thread, until no caller is inside (a forward pre-hook)."""
+        if threading.get_ident() != self.worker:
+            return
+        with self._condition:
+            self._condition.wait_for(lambda: self._callers <= 0)
 
 
 class StreamingEngine:
@@ -135,6 +198,10 @@ class StreamingEngine:
         # The hand source reads each image in its own thread, beside the model (in order).
         self._detector = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_detect')
                           if self._hand_source.needs_image else None)
+        # The geometry branch of a frame answered first, started by catch_up (created then).
+        self._geometry_worker: ThreadPoolExecutor | None = None
+        self._gate = _Gate()
+        self._gate_hooks: list[torch.utils.hooks.RemovableHandle] = []
         # Detections started at the images' arrival (detect_ahead), by stamp.
         self._ahead: dict[int, Future] = {}
         self._ahead_lock = threading.Lock()
@@ -157,7 +224,7 @@ class StreamingEngine:
                         'geometry_failures': 0}
         # (index, source intrinsics, model-input intrinsics) of the last geometry frame
         self._geometry_seen: tuple[int, Intrinsics, Intrinsics] | None = None
-        self._owed: CameraSpaceFrame | None = None  # a frame out before its geometry branch ran
+        self._owed: _Owed | None = None  # a frame out before its geometry branch ran
         self._owed_failed = False  # its geometry branch failed: first until one succeeds
         ba = self.config.bundle_adjustment
         blend_s = (self.config.pose_track.correction_blend_s if ba is None
@@ -205,11 +272,12 @@ class StreamingEngine:
             EngineStateError: after ``close()`` or when another thread is inside the engine.
 
         """
-        with self._exclusive():
+        with self._exclusive(), self._gate.closed():
             frame = self._prepare(image, timestamp_ns, intrinsics)
             self._frames_pushed += 1
             self._last_stamp = frame.timestamp_ns
-            self._pay_geometry()
+            if self._owed_due(frame):
+                self._pay_geometry()
             route = self._route(frame)
             if route == 'geometry':
                 if self._ba is not None and frame.keyframe:  # BA reads the keyframe's image
@@ -228,7 +296,7 @@ class StreamingEngine:
                 record = self._tracked_only(frame)
                 self._decoding.append(_done([record]))
                 if route == 'tracked_first':
-                    self._owed = record
+                    self._owed = _Owed(record)
             return self._collect(wait=False)
 
     @property
@@ -279,17 +347,36 @@ class StreamingEngine:
         return self._detector.submit(self._hand_source.detect, image.copy(), index)
 
     def catch_up(self) -> None:
-        """Run the geometry branch a frame whose result went out first still owes (if any).
+        """Start the geometry branch a frame whose result went out first still owes (if any).
 
-        For a live caller, right after publishing a result, while no frame waits; otherwise
-        the next call does it. Results are the same either way.
+        For a live caller, right after publishing a result. Where the next frame would take
+        its outputs in, it runs (or, started earlier, is waited for) here, so the next frame
+        does not wait for it; with ``geometry_lag: 1``, right after the frame it belongs to, it
+        starts in a worker thread instead, held while a call is inside the engine, so that
+        the next frame's answer does not wait for it either. Without catch_up the call that
+        needs it runs it. Results are the same either way.
 
         Raises:
             EngineStateError: after ``close()`` or when another thread is inside the engine.
 
         """
         with self._exclusive():
-            self._pay_geometry()
+            owed = self._owed
+            if owed is None or owed.moment is None:
+                return
+            if self._frames_pushed - owed.record.frame.index > self.config.geometry_lag:
+                self._pay_geometry()  # the next frame takes it in
+                return
+            if owed.run is not None:
+                return
+            if self._geometry_worker is None:
+                self._geometry_worker = ThreadPoolExecutor(max_workers=1,
+                                                           thread_name_prefix='geometry')
+                geometry = self.model.geometry
+                for module in (*geometry.aggregator.frame_blocks,
+                               *geometry.aggregator.global_blocks, geometry.depth_head):
+                    self._gate_hooks.append(module.register_forward_pre_hook(self._gate.boundary))
+            owed.run = self._geometry_worker.submit(self._owed_geometry, owed, True)
 
     def flush(self) -> list[FrameResult]:
         """Process every frame still held back and return all remaining results.
@@ -378,9 +465,11 @@ class StreamingEngine:
                 return
             self._closed = True
             self._drain()
-            for worker in (self._decoder, self._detector):
+            for worker in (self._decoder, self._detector, self._geometry_worker):
                 if worker is not None:
                     worker.shutdown(wait=True)
+            for hook in self._gate_hooks:
+                hook.remove()
             if self._ba is not None:
                 self._ba.close()
             self._hand_source.close()
@@ -463,7 +552,8 @@ class StreamingEngine:
         when the tracker lost the camera (its network pose is the prior), after its result
         for a new reference; so does a frame with hands while the metric scale warms up (its
         depth gives the samples); it always comes first with BA (its keyframes carry their
-        depth).
+        depth). The frame after one whose geometry is still owed (``geometry_lag: 1``) is
+        'tracked' (the owed one brings the depth it would need).
         """
         if frame.pixels is None:
             return 'static'
@@ -474,7 +564,9 @@ class StreamingEngine:
                 or frame.index < self._anchor_frames or seen is None or self._owed_failed
                 or (tracker.needs_depth and tracker.lost)):
             return 'geometry'
-        if (frame.index - seen[0] < self.config.geometry_interval and not tracker.needs_depth
+        owed = self._owed
+        since = frame.index - (seen[0] if owed is None else owed.record.frame.index)
+        if (since < self.config.geometry_interval and not (tracker.needs_depth and owed is None)
                 and not (self.pose_track.scale_state == 'warmup' and frame.found().hands)):
             return 'tracked'
         return 'geometry' if self._ba is not None else 'tracked_first'
@@ -490,33 +582,68 @@ class StreamingEngine:
         hands = self._hand_source.camera_hands(frame.found(), (), intrinsics)
         return CameraSpaceFrame(frame, None, intrinsics, hands, None, view)
 
-    def _pay_geometry(self) -> None:
-        """Run the geometry branch on the frame that went out before it (``tracked_first``).
+    def _owed_due(self, frame: PreparedFrame) -> bool:
+        """Return whether the owed geometry branch is taken in before ``frame``.
 
-        The frame enters the streaming memory; the pose track takes its network pose and
-        depth (``PoseTrack.absorb``), its hands are metric-scale samples (the frames between
-        give none) and its intrinsics hold for the frames after it. Non-finite outputs leave
-        the memory as it was and are counted (``geometry_failures``); the next frame then runs
-        the geometry branch first (where a failure raises ``ModelOutputError``).
+        Before the frame after it, or with ``geometry_lag: 1`` before the second one, or the
+        first when that frame needs it: the tracker lost the camera (the frame runs the
+        geometry branch first), or the metric scale warms up and the frame has hands.
+        """
+        owed = self._owed
+        if owed is None:
+            return False
+        tracker = self.pose_track.tracker
+        return (frame.index - owed.record.frame.index > self.config.geometry_lag
+                or (tracker.needs_depth and tracker.lost)
+                or (self.pose_track.scale_state == 'warmup' and bool(frame.found().hands)))
+
+    def _owed_geometry(self, owed: _Owed, in_worker: bool = False) -> CameraSpaceFrame:
+        """Run the geometry branch on a frame answered first; return its record.
+
+        In the caller's thread, or the worker's (``catch_up``; ``in_worker``), where the depth
+        a new tracker reference or the hands' scale samples will read is computed too.
+        """
+        if in_worker:
+            self._gate.worker = threading.get_ident()
+        frame = owed.record.frame
+        intrinsics, known = self._given_intrinsics([frame])
+        with torch.inference_mode():
+            geometry, poses, used = self.model.run_geometry(
+                frame.pixels[None, None], self._stream, [frame.keyframe], intrinsics, known,
+                self._detection, self._cpu_bf16, masks=False, depth=False)
+        record = split_geometry(geometry, poses, used, [frame], self.model.geometry)[0]
+        if in_worker and (owed.record.hands or owed.moment.needs_depth):
+            record.depth.model()
+        return record
+
+    def _pay_geometry(self) -> None:
+        """Take in the geometry branch of the frame that went out before it (``tracked_first``).
+
+        Waits for its run in the worker thread (``catch_up``), or runs it here. The frame has
+        entered the streaming memory; the pose track takes its network pose and depth
+        (``PoseTrack.absorb``, with the tracker as it was right after the frame), its hands are
+        metric-scale samples (the frames between give none) and its intrinsics hold for the
+        frames after it. Non-finite outputs leave the memory as it was and are counted
+        (``geometry_failures``); the next frame then runs the geometry branch first (where a
+        failure raises ``ModelOutputError``).
         """
         owed, self._owed = self._owed, None
         if owed is None:
             return
-        frame = owed.frame
-        intrinsics, known = self._given_intrinsics([frame])
+        frame = owed.record.frame
         try:
-            with torch.inference_mode():
-                geometry, poses, used = self.model.run_geometry(
-                    frame.pixels[None, None], self._stream, [frame.keyframe], intrinsics, known,
-                    self._detection, self._cpu_bf16, masks=False, depth=False)
+            if owed.run is None:
+                record = self._owed_geometry(owed)
+            else:
+                with self._gate.opened():
+                    record = owed.run.result()
         except ModelOutputError:
             self._counts['geometry_failures'] += 1
             self._owed_failed = True
             return
-        record = split_geometry(geometry, poses, used, [frame], self.model.geometry)[0]
-        record = dataclasses.replace(record, hands=owed.hands,
-                                     view=_with_hand_boxes(record.view, frame, owed.hands))
-        self.pose_track.absorb(frame.index, record.T_raw, record.view)
+        record = dataclasses.replace(record, hands=owed.record.hands,
+                                     view=_with_hand_boxes(record.view, frame, owed.record.hands))
+        self.pose_track.absorb(frame.index, record.T_raw, record.view, owed.moment)
         self._geometry_seen = (frame.index, record.intrinsics, record.view.intrinsics)
         self.pose_track.observe_scale(*self._scale_samples(record, True))
         if record.depth.computed:
@@ -605,6 +732,8 @@ class StreamingEngine:
         while self._decoding:
             self._decoding.popleft().exception()
         self._pending.clear()
+        if self._owed is not None and self._owed.run is not None:
+            self._owed.run.exception()  # its worker runs on (no caller inside) and ends
         self._owed = None
         with self._ahead_lock:
             self._ahead.clear()
@@ -618,6 +747,8 @@ class StreamingEngine:
         view = (None if record.view is None
                 else _with_hand_boxes(record.view, frame, record.hands))
         state = track.add(frame.index, frame.timestamp_ns, record.T_raw, view)
+        if self._owed is not None and self._owed.record is record:
+            self._owed.moment = track.tracker.moment()
         if record.T_raw is not None and view is not None:
             self._geometry_seen = (frame.index, record.intrinsics, view.intrinsics)
         if frame.found().scene_cut or state == 'reinitialised':

@@ -262,6 +262,47 @@ def test_frames_without_network_pose_or_depth_are_tracked_and_renew_on_depth(
     assert renewals >= 1 and asked >= 1, (renewals, asked)
 
 
+def test_depth_taken_in_one_frame_late_renews_at_its_frame() -> None:
+    """As the engine without BA: a frame due for depth is tracked without it, so is the next one.
+
+    Only then do its network pose and depth come (``absorb`` with the tracker's ``moment``
+    right after it). A renewal due there happens at that frame, its points are followed into
+    the next one and anchored on that frame's pose; the path stays as exact as with depth on
+    every frame.
+    """
+    source = texture(0)
+    tracker = CameraTracker(TrackerConfig())
+    owed = None  # (index, gray, depth, moment)
+    last_view = None  # the last frame tracked
+    renewals = 0
+    last_geometry = 0
+    for index in range(120):
+        gray, depth = render(source, pan(index))
+        if owed is not None and index - owed[0] == 2:
+            before = tracker._reference
+            assert tracker.absorb(view(owed[1], owed[2]), pan(owed[0]), owed[3]) is None
+            if tracker._reference is not before:
+                renewals += 1
+                translation_error, rotation_error = errors(tracker._reference.T_raw,
+                                                           pan(owed[0]))
+                assert rotation_error < 0.5 and translation_error < 0.05
+                assert tracker._last_view is last_view and not tracker.needs_depth
+            owed = None
+        if index == 0:
+            result = tracker.track(view(gray, depth), pan(index))
+        else:
+            last_view = view(gray, None)
+            due = owed is None and (index - last_geometry >= 3 or tracker.needs_depth)
+            result = tracker.track(last_view, None)
+            if due:
+                last_geometry = index
+                owed = (index, gray, depth, tracker.moment())
+        translation_error, rotation_error = errors(result.T_raw, pan(index))
+        assert result.state == 'tracked'
+        assert rotation_error < 0.5 and translation_error < 0.05, index
+    assert renewals >= 1
+
+
 def test_a_frame_without_depth_that_loses_the_points_holds_the_pose_and_asks_for_depth() -> None:
     source = texture(3)
     tracker = CameraTracker(TrackerConfig())

@@ -9,7 +9,8 @@ hand source, BA off (the tracker alone):
   no parallax: the hardest case for depth-based tracking), with exactly known rotations.
 
 Each runs with the geometry branch on every frame and on every third (``geometry_interval``:
-the frames between tracked from the image alone).
+the frames between tracked from the image alone), there also with its outputs taken in a frame
+late (``geometry_lag`` 1, the node's).
 """
 
 from dataclasses import replace
@@ -47,9 +48,10 @@ def _run(engine: StreamingEngine, frames: list) -> list:
     return results + engine.flush()
 
 
-@pytest.mark.parametrize('geometry_interval', [1, 3])
+@pytest.mark.parametrize('geometry_interval, geometry_lag', [(1, 0), (3, 0), (3, 1)])
 def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list,
-                                                               geometry_interval: int) -> None:
+                                                               geometry_interval: int,
+                                                               geometry_lag: int) -> None:
     """12 s at 10 Hz: drift at most 2 cm and 1 degree at every frame, in metres."""
     patch = hand_and_arm_patch([still.rgb for still in stills])
     assert patch is not None, 'MediaPipe found no hand in any still'
@@ -60,7 +62,7 @@ def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list,
     corners = np.stack([span_x * (0.5 + 0.5 * np.sin(2 * np.pi * 2 * steps)),
                         span_y * (0.5 + 0.5 * np.sin(2 * np.pi * 3 * steps))], axis=1)
     frames = pasted_stream(background.rgb, patch, corners, background.intrinsics)
-    with _engine(geometry_interval=geometry_interval) as engine:
+    with _engine(geometry_interval=geometry_interval, geometry_lag=geometry_lag) as engine:
         results = _run(engine, frames)
         statistics = engine.statistics['tracker']
         skipped = engine.statistics['frames_without_geometry']
@@ -74,8 +76,9 @@ def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list,
     assert statistics['states'].get('tracked', 0) >= 117, statistics
 
 
-@pytest.mark.parametrize('geometry_interval', [1, 3])
-def test_turning_camera_followed_on_a_real_photo(stills: list, geometry_interval: int) -> None:
+@pytest.mark.parametrize('geometry_interval, geometry_lag', [(1, 0), (3, 0), (3, 1)])
+def test_turning_camera_followed_on_a_real_photo(stills: list, geometry_interval: int,
+                                                 geometry_lag: int) -> None:
     """60 frames turning up to 10 degrees: every frame within 1 degree of the truth."""
     photo = stills[5]
     steps = np.linspace(0.0, 1.0, 60)
@@ -85,7 +88,7 @@ def test_turning_camera_followed_on_a_real_photo(stills: list, geometry_interval
     truth = Rotation.from_rotvec(rotvecs).as_matrix()
     out = Intrinsics(400.0, 400.0, 159.5, 119.5, 320, 240)
     frames = rotation_stream(photo.rgb, photo.intrinsics, truth, out)
-    with _engine(geometry_interval=geometry_interval) as engine:
+    with _engine(geometry_interval=geometry_interval, geometry_lag=geometry_lag) as engine:
         results = _run(engine, frames)
         skipped = engine.statistics['frames_without_geometry']
     assert (skipped >= 30) == (geometry_interval == 3), skipped

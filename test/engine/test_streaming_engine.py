@@ -23,6 +23,7 @@ from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.pose_track import PoseTrackConfig
+from infinihand_ros.engine.streaming_engine import _Gate
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
@@ -550,27 +551,38 @@ def test_geometry_runs_on_every_nth_frame_with_hands_from_outside_the_model(
             assert result.depth is None and result.tracking in ('tracked', 'predicted')
 
 
+@pytest.mark.parametrize('lag', [0, 1])
 def test_results_go_out_before_their_geometry_and_do_not_depend_on_catch_up(
-        model, monkeypatch: pytest.MonkeyPatch) -> None:
-    """A frame due by the interval is answered first; catch_up() (or the next call) runs it.
+        model, monkeypatch: pytest.MonkeyPatch, lag: int) -> None:
+    """A frame due by the interval is answered first; catch_up() (or a later call) runs it.
 
-    Calling catch_up() after every push changes when the geometry branch runs, not what any
-    result is. (12 frames: the untrained model's depth asks for new references often, which
-    run the geometry branch first.)
+    Calling catch_up() after every push changes when (and, with ``geometry_lag`` 1, in which
+    thread) the geometry branch runs, not what any result is. (12 frames: the untrained
+    model's depth asks for new references often, which run the geometry branch first.)
     """
     frames = list(SyntheticSequence(SynthConfig(width=320, height=240), seed=5, num_frames=12))
-    with StreamingEngine(_interval_config(), model) as engine:
+    with StreamingEngine(_interval_config(geometry_lag=lag), model) as engine:
         plain = _run(engine, frames)
-    with StreamingEngine(_interval_config(), model) as engine:
-        calls = _counting_geometry(engine, monkeypatch)
+    with StreamingEngine(_interval_config(geometry_lag=lag), model) as engine:
+        threads: list[str] = []
+        run_geometry = engine.model.run_geometry
+
+        def counted(*args: object, **kwargs: object) -> object:
+            threads.append(threading.current_thread().name)
+            return run_geometry(*args, **kwargs)
+
+        monkeypatch.setattr(engine.model, 'run_geometry', counted)
         eager, in_catch_up = [], 0
         for frame in frames:
             eager += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
-            before = len(calls)
+            before = len(threads)
             engine.catch_up()
-            in_catch_up += len(calls) - before
+            in_catch_up += len(threads) - before
         eager += engine.flush()
-    assert in_catch_up > 0
+    if lag == 0:
+        assert in_catch_up > 0
+    else:
+        assert any(name.startswith('geometry') for name in threads)
     assert len(plain) == len(eager) == len(frames)
     for a, b in zip(plain, eager):
         np.testing.assert_array_equal(a.camera_pose.matrix(), b.camera_pose.matrix())
@@ -596,37 +608,71 @@ def test_geometry_runs_on_every_frame_where_a_frame_needs_it(
     assert (sum(calls), skipped) == ((0, NUM_FRAMES) if static else (NUM_FRAMES, 0))
 
 
+@pytest.mark.parametrize('lag', [0, 1])
 def test_a_failed_geometry_after_the_answer_is_counted_and_runs_first_next(
-        model, monkeypatch: pytest.MonkeyPatch) -> None:
-    """Non-finite outputs in catch_up(): counted, nothing raised; the next frame runs it first.
+        model, monkeypatch: pytest.MonkeyPatch, lag: int) -> None:
+    """Non-finite outputs in the owed geometry: counted, nothing raised; it then runs first.
 
-    There a failure raises ``ModelOutputError`` and the frame is not consumed, as on any
-    frame whose geometry branch comes first; frames keep running it first until it succeeds.
+    catch_up() runs it (``geometry_lag`` 0: counted there) or starts it (1: counted where it
+    is taken in: the second frame after it, or the first when that one needs it). The next
+    frame then runs the geometry branch first, where a failure raises ``ModelOutputError`` and
+    the frame is not consumed; frames keep running it first until it succeeds.
     """
     frames = list(SyntheticSequence(SynthConfig(width=320, height=240), seed=5, num_frames=12))
 
     def fail(*args: object, **kwargs: object) -> object:
         raise ModelOutputError('non-finite outputs')
 
-    with StreamingEngine(_interval_config(), model) as engine:
+    with StreamingEngine(_interval_config(geometry_lag=lag), model) as engine:
         run_geometry = engine.model.run_geometry
         pushed = iter(frames)
         for frame in pushed:
             engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
             if engine._owed is not None:
                 break
+        owed_index = frame.index
         monkeypatch.setattr(engine.model, 'run_geometry', fail)
         engine.catch_up()  # nothing raised
+        assert engine.statistics['geometry_failures'] == (1 if lag == 0 else 0)
+        for frame in pushed:
+            try:
+                engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
+            except ModelOutputError:
+                break
+            assert engine.statistics['geometry_failures'] == 0
+        assert frame.index - owed_index in ((1,) if lag == 0 else (1, 2))
         assert engine.statistics['geometry_failures'] == 1
-        frame = next(pushed)
-        with pytest.raises(ModelOutputError):
-            engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
         assert engine.statistics['frames_pushed'] == frame.index
         monkeypatch.setattr(engine.model, 'run_geometry', run_geometry)
         calls = _counting_geometry(engine, monkeypatch)
         results = engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
         assert calls == [1] and [r.frame_index for r in results] == [frame.index]
         assert engine.statistics['geometry_failures'] == 1
+
+
+def test_the_geometry_worker_waits_at_block_boundaries_while_a_call_is_inside() -> None:
+    """geometry_lag 1: the owed geometry stops at the next block while a frame is pushed.
+
+    Only the worker thread waits; a caller waiting for the worker's result opens the gate.
+    """
+    gate = _Gate()
+    started, passed = threading.Event(), threading.Event()
+
+    def worker() -> None:
+        gate.worker = threading.get_ident()
+        started.set()
+        gate.boundary()
+        passed.set()
+
+    with gate.closed():
+        gate.boundary()  # not the worker: no wait
+        thread = threading.Thread(target=worker)
+        thread.start()
+        assert started.wait(5)
+        assert not passed.wait(0.2)
+        with gate.opened():
+            assert passed.wait(5)
+    thread.join(5)
 
 
 def _fixed_camera_config() -> EngineConfig:
