@@ -7,7 +7,8 @@ Builds two streams from the shared real stills (``../shared/data/real_hands_stil
 ``infinihand_ros.synth.photo_streams`` and runs each through the default engine (bundled model,
 real-image hand source, BA off) with the per-frame tracker on, the geometry branch on every
 n-th frame for each n of ``--geometry-intervals`` (``engine.geometry_interval``; the frames
-between tracked from the image alone), and with the tracker off (the network's camera as it
+between tracked from the image alone; for n > 1 also with its outputs taken in a frame late,
+``engine.geometry_lag`` 1, the node's), and with the tracker off (the network's camera as it
 is, geometry on every frame):
 - still camera, 10 Hz: a real hand and arm moving across a photo; the true pose is the
   identity, so every pose is drift (metres with the engine's metric scale, and degrees);
@@ -35,12 +36,13 @@ import torch
 STILLS = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real_hands_stills'
 
 
-def run(frames: list, tracker: bool, geometry_interval: int) -> tuple[list, dict, int]:
+def run(frames: list, tracker: bool, geometry_interval: int, geometry_lag: int
+        ) -> tuple[list, dict, int]:
     """Return the results, tracker statistics and frames without geometry of one stream."""
     config = load_engine_config()
     config = replace(config, hands=replace(config.hands, source='mediapipe'),
                      bundle_adjustment=None, tracker=replace(config.tracker, enabled=tracker),
-                     geometry_interval=geometry_interval)
+                     geometry_interval=geometry_interval, geometry_lag=geometry_lag)
     with StreamingEngine(config) as engine:
         results = []
         for frame in frames:
@@ -79,13 +81,15 @@ def main() -> None:
     turning = rotation_stream(photo.rgb, photo.intrinsics, truth,
                               Intrinsics(400.0, 400.0, 159.5, 119.5, 320, 240))
     report = {}
-    runs = [(f'tracker, geometry every {n}', True, n) for n in args.geometry_intervals]
-    for name, tracker, interval in runs + [('network', False, 1)]:
-        results, statistics, skipped = run(still, tracker, interval)
+    runs = [(f'tracker, geometry every {n}', True, n, 0) for n in args.geometry_intervals]
+    runs += [(f'tracker, geometry every {n}, a frame late', True, n, 1)
+             for n in args.geometry_intervals if n > 1]
+    for name, tracker, interval, lag in runs + [('network', False, 1, 0)]:
+        results, statistics, skipped = run(still, tracker, interval, lag)
         drift_m = np.array([np.linalg.norm(r.camera_pose.translation) for r in results])
         drift_deg = np.degrees([Rotation.from_matrix(r.camera_pose.rotation).magnitude()
                                 for r in results])
-        turned, turn_statistics, turn_skipped = run(turning, tracker, interval)
+        turned, turn_statistics, turn_skipped = run(turning, tracker, interval, lag)
         error_deg = np.degrees([Rotation.from_matrix(r.camera_pose.rotation @ t.T).magnitude()
                                 for r, t in zip(turned, truth[0].T @ truth)])
         report[name] = {
@@ -109,7 +113,7 @@ def main() -> None:
               f"{row['still_max_deg']:.3f} | {row['still_mean_deg']:.3f} | "
               f"{row['turning_max_deg']:.3f} | {row['turning_mean_deg']:.3f} | "
               f"{row['ms_per_frame']:.2f} | {100 * row['without_geometry']:.0f} % |")
-    for name, _, _ in runs:
+    for name, *_ in runs:
         print(f"{name}: tracker states: still {report[name]['still_states']}, turning "
               f"{report[name]['turning_states']}")
 

@@ -8,8 +8,10 @@ Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
 ``estimator`` (with ``engine.bundle_adjustment`` none, in_process, or ``node`` plus the installed
 ``bundle_adjustment`` node) on a private DDS domain, replays the frames (10 FPS; ``replay
 --rate r/10``) and listens in this process to the replayed images and to ``~/camera_pose``.
-Profiles: ``default`` (the node's defaults), ``every_frame`` (the defaults with the geometry
-branch on every frame, ``engine.geometry_interval: 1``) and ``teleop`` (``camera.motion:
+Profiles: ``default`` (the node's defaults), ``lag0`` (the defaults with the geometry branch's
+outputs taken in before the next frame, ``engine.geometry_lag: 0``, so that it runs in the
+inference thread), ``every_frame`` (the defaults with the geometry branch on every frame,
+``engine.geometry_interval: 1``) and ``teleop`` (``camera.motion:
 static``, a fixed camera, with the default MediaPipe hands: the teleoperation case; BA does not
 apply). Frames:
 ``sample``, the first ``--seconds`` of the sample bag (synthetic, 518x378 JPEG), or ``real``, a
@@ -75,7 +77,8 @@ INFO_TOPIC = '/camera/camera_info'
 POSE_TOPIC = '/infinihand_estimator/camera_pose'
 REMAPS = ['-r', f'image/compressed:={IMAGE_TOPIC}', '-r', f'camera_info:={INFO_TOPIC}']
 #: Node parameters of each profile.
-PROFILES = {'default': [], 'every_frame': ['-p', 'engine.geometry_interval:=1'],
+PROFILES = {'default': [], 'lag0': ['-p', 'engine.geometry_lag:=0'],
+            'every_frame': ['-p', 'engine.geometry_interval:=1'],
             'teleop': ['-p', 'camera.motion:=static']}
 STILLS = ROOT.parent / 'shared' / 'data' / 'real_hands_stills'
 REAL_SECONDS = 15.0
@@ -115,9 +118,10 @@ def parse_args() -> argparse.Namespace:
                         help="bundle adjustment: none, the engine's worker (the node's "
                         'default) or the BA node')
     parser.add_argument('--profiles', nargs='+', default=list(PROFILES), choices=list(PROFILES),
-                        help='default: the node as shipped; every_frame: the geometry '
-                        'branch on every frame (engine.geometry_interval 1); teleop: a fixed '
-                        'camera (camera.motion static) with MediaPipe hands')
+                        help='default: the node as shipped; lag0: the geometry branch taken '
+                        'in before the next frame (engine.geometry_lag 0); every_frame: the '
+                        'geometry branch on every frame (engine.geometry_interval 1); teleop: '
+                        'a fixed camera (camera.motion static) with MediaPipe hands')
     parser.add_argument('--frames', choices=('sample', 'real'), default='sample',
                         help='sample: the sample bag; real: a crop video of a real hand photo')
     parser.add_argument('--seconds', type=float, default=0.0,

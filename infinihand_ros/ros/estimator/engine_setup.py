@@ -57,6 +57,7 @@ def engine_config_for(config: EstimatorConfig) -> EngineConfig:
         ba = replace(ba, worker=replace(ba.worker, when_behind=LIVE_WHEN_BEHIND))
     output = OutputConfig(config.identity, config.shape, config.smoothing)
     return replace(base, mode=selection.mode, keyframe_interval=selection.keyframe_interval,
-                   geometry_interval=selection.geometry_interval, device=selection.device,
+                   geometry_interval=selection.geometry_interval,
+                   geometry_lag=selection.geometry_lag, device=selection.device,
                    model=model, bundle_adjustment=ba,
                    camera_motion=config.camera.motion, output=output, hands=config.hands)
