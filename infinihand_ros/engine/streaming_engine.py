@@ -347,7 +347,7 @@ class StreamingEngine:
         return self._detector.submit(self._hand_source.detect, image.copy(), index)
 
     def catch_up(self) -> None:
-        """Start the geometry branch a frame whose result went out first still owes (if any).
+        """Run or start the geometry branch a frame whose result went out first owes (if any).
 
         For a live caller, right after publishing a result. Where the next frame would take
         its outputs in, it runs (or, started earlier, is waited for) here, so the next frame
