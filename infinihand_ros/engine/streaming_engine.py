@@ -23,7 +23,7 @@ publishing) or at the start of the next call, and the pose track takes its outpu
 next frame. With ``geometry_lag: 1`` they come one frame later: the next frame is tracked from
 the image too, and they are taken in before the frame after it (or before a frame that needs
 them first: the tracker lost the camera, the metric scale still warms up); ``catch_up()`` then
-starts the branch in a worker thread, paused whenever a call is inside the engine, so the next
+starts the branch in a worker thread, paused whenever a frame is being pushed, so the next
 frame's answer does not wait for it. Results do not depend on when it runs. A hand
 source that reads images (MediaPipe) does so in its own thread, in push order, while the model
 runs on the frame. For a fixed camera a live caller can start it earlier, when the image arrives
@@ -110,7 +110,7 @@ class _Owed:
 
 
 class _Gate:
-    """Holds the geometry worker at block boundaries while a caller is inside the engine."""
+    """Holds the geometry worker at block boundaries while a frame is being pushed."""
 
     def __init__(self) -> None:
         """Start open, with no worker thread known."""
@@ -130,24 +130,12 @@ class _Gate:
                 self._callers -= 1
                 self._condition.notify_all()
 
-    @contextlib.contextmanager
-    def opened(self) -> Iterator[None]:
-        """Let the worker run while inside (a caller waiting for it)."""
-        with self._condition:
-            self._callers -= 1
-            self._condition.notify_all()
-        try:
-            yield
-        finally:
-            with self._condition:
-                self._callers += 1
-
     def boundary(self, *unused: object) -> None:
         """Wait here, in the worker thread, until no caller is inside (a forward pre-hook)."""
         if threading.get_ident() != self.worker:
             return
         with self._condition:
-            self._condition.wait_for(lambda: self._callers <= 0)
+            self._condition.wait_for(lambda: self._callers == 0)
 
 
 class StreamingEngine:
@@ -272,32 +260,33 @@ class StreamingEngine:
             EngineStateError: after ``close()`` or when another thread is inside the engine.
 
         """
-        with self._exclusive(), self._gate.closed():
+        with self._exclusive():
             frame = self._prepare(image, timestamp_ns, intrinsics)
             self._frames_pushed += 1
             self._last_stamp = frame.timestamp_ns
             if self._owed_due(frame):
-                self._pay_geometry()
-            route = self._route(frame)
-            if route == 'geometry':
-                if self._ba is not None and frame.keyframe:  # BA reads the keyframe's image
-                    frame = dataclasses.replace(frame, source_image=image.copy())
-                self._pending.append(frame)
-                if len(self._pending) >= self._block_size():
-                    self._run_block()
+                self._pay_geometry()  # the gate still open: this may wait for the worker
+            with self._gate.closed():
+                route = self._route(frame)
+                if route == 'geometry':
+                    if self._ba is not None and frame.keyframe:  # BA reads the keyframe's image
+                        frame = dataclasses.replace(frame, source_image=image.copy())
+                    self._pending.append(frame)
+                    if len(self._pending) >= self._block_size():
+                        self._run_block()
+                    return self._collect(wait=False)
+                self._accepted_stamp = frame.timestamp_ns
+                if route == 'static':  # no model input: the geometry branch is not needed
+                    self._decoding.append(_done(self._without_geometry(frame)))
+                else:
+                    if route == 'tracked':  # enters no streaming memory
+                        frame = dataclasses.replace(frame, keyframe=False)
+                        self._counts['frames_without_geometry'] += 1
+                    record = self._tracked_only(frame)
+                    self._decoding.append(_done([record]))
+                    if route == 'tracked_first':
+                        self._owed = _Owed(record)
                 return self._collect(wait=False)
-            self._accepted_stamp = frame.timestamp_ns
-            if route == 'static':  # no model input: the geometry branch is not needed
-                self._decoding.append(_done(self._without_geometry(frame)))
-            else:
-                if route == 'tracked':  # enters no streaming memory
-                    frame = dataclasses.replace(frame, keyframe=False)
-                    self._counts['frames_without_geometry'] += 1
-                record = self._tracked_only(frame)
-                self._decoding.append(_done([record]))
-                if route == 'tracked_first':
-                    self._owed = _Owed(record)
-            return self._collect(wait=False)
 
     @property
     def detects_ahead(self) -> bool:
@@ -352,7 +341,7 @@ class StreamingEngine:
         For a live caller, right after publishing a result. Where the next frame would take
         its outputs in, it runs (or, started earlier, is waited for) here, so the next frame
         does not wait for it; with ``geometry_lag: 1``, right after the frame it belongs to, it
-        starts in a worker thread instead, held while a call is inside the engine, so that
+        starts in a worker thread instead, held while a frame is being pushed, so that
         the next frame's answer does not wait for it either. Without catch_up the call that
         needs it runs it. Results are the same either way.
 
@@ -632,11 +621,7 @@ class StreamingEngine:
             return
         frame = owed.record.frame
         try:
-            if owed.run is None:
-                record = self._owed_geometry(owed)
-            else:
-                with self._gate.opened():
-                    record = owed.run.result()
+            record = self._owed_geometry(owed) if owed.run is None else owed.run.result()
         except ModelOutputError:
             self._counts['geometry_failures'] += 1
             self._owed_failed = True
