@@ -1,7 +1,7 @@
 """Live estimator figures: output rate, latency and drops with a bag replayed at 10/30 Hz.
 
     python benchmarks/node_latency.py [--rates 10 30] [--ba none in_process node]
-        [--profiles default teleop] [--frames sample|real] [--seconds S] [--json]
+        [--profiles default teleop] [--frames sample|real|real2] [--seconds S] [--json]
 
 Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
 ``source scripts/env.sh``. For each profile, input rate and BA setting it starts the installed
@@ -14,9 +14,11 @@ inference thread), ``every_frame`` (the defaults with the geometry branch on eve
 ``engine.geometry_interval: 1``) and ``teleop`` (``camera.motion:
 static``, a fixed camera, with the default MediaPipe hands: the teleoperation case; BA does not
 apply). Frames:
-``sample``, the first ``--seconds`` of the sample bag (synthetic, 518x378 JPEG), or ``real``, a
+``sample``, the first ``--seconds`` of the sample bag (synthetic, 518x378 JPEG), ``real``, a
 15 s crop video panning over a real hand photo from ``../shared/data/real_hands_stills``
-(640x480 JPEG with exact CameraInfo; ``synth/photo_streams.py``). Beside the node it times
+(640x480 JPEG with exact CameraInfo; ``synth/photo_streams.py``), or ``real2``, the same
+video with the photo's half around the hand beside its mirror image (a real right and a real
+left hand in every frame: two-handed teleoperation). Beside the node it times
 MediaPipe Hands alone (its video mode as it is, ``hands.search_interval: 1``) on the same
 decoded frames, one after another in this process, printed with the node's ratio to it.
 
@@ -122,8 +124,9 @@ def parse_args() -> argparse.Namespace:
                         'in before the next frame (engine.geometry_lag 0); every_frame: the '
                         'geometry branch on every frame (engine.geometry_interval 1); teleop: '
                         'a fixed camera (camera.motion static) with MediaPipe hands')
-    parser.add_argument('--frames', choices=('sample', 'real'), default='sample',
-                        help='sample: the sample bag; real: a crop video of a real hand photo')
+    parser.add_argument('--frames', choices=('sample', 'real', 'real2'), default='sample',
+                        help='sample: the sample bag; real: a crop video of a real hand photo; '
+                        'real2: the same with the photo beside its mirror image (two hands)')
     parser.add_argument('--seconds', type=float, default=0.0,
                         help='replay only the first S seconds of the bag (0: all of it)')
     parser.add_argument('--json', action='store_true', help='print one JSON line per run')
@@ -236,8 +239,12 @@ def figures(profile: str, rate_hz: float, ba: str, images: int, listener: Listen
                       int(values.get('ba_results_applied', 0)))
 
 
-def write_real_segment(out: Path) -> int:
-    """Write a crop video over a real hand photo (JPEG images, CameraInfo) to ``out``."""
+def write_real_segment(out: Path, two_hands: bool = False) -> int:
+    """Write a crop video over a real hand photo (JPEG images, CameraInfo) to ``out``.
+
+    With ``two_hands`` the photo's half around its hand is put beside its mirror image, so the
+    video shows a real right hand and a real (mirrored) left hand side by side.
+    """
     frames = list(read_camera_frames(STILLS))
     detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
     try:
@@ -250,11 +257,18 @@ def write_real_segment(out: Path) -> int:
             raise RuntimeError(f'no photo in {STILLS} with one clear hand')
     finally:
         detector.close()
+    rgb, centre = frame.rgb, found[0].joints_2d.mean(axis=0)
+    if two_hands:
+        width = rgb.shape[1] // 2
+        x0 = int(np.clip(round(centre[0]) - width // 2, 0, rgb.shape[1] - width))
+        half = rgb[:, x0:x0 + width]
+        rgb = np.ascontiguousarray(np.concatenate([half[:, ::-1], half], axis=1))
+        centre = np.array([rgb.shape[1] / 2, centre[1]])
     count = int(REAL_SECONDS * BAG_FPS)
     phase = np.linspace(0.0, 1.0, count)
-    centres = found[0].joints_2d.mean(axis=0) + np.stack(
+    centres = centre + np.stack(
         [40 * np.sin(2 * np.pi * phase), 25 * np.cos(2 * np.pi * phase)], axis=1)
-    crops = crop_stream(frame.rgb, frame.intrinsics, centres, np.full(count, 480.0),
+    crops = crop_stream(rgb, frame.intrinsics, centres, np.full(count, 480.0),
                         size=(640, 480), fps=BAG_FPS)
     store = build_typestore()
     with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
@@ -360,8 +374,8 @@ def main() -> None:
         with tempfile.TemporaryDirectory(prefix='node_latency_') as tmp:
             work = Path(tmp)
             segment = work / 'segment'
-            images = (write_real_segment(segment) if args.frames == 'real'
-                      else write_segment(args.seconds, segment))
+            images = (write_segment(args.seconds, segment) if args.frames == 'sample'
+                      else write_real_segment(segment, two_hands=args.frames == 'real2'))
             alone = mediapipe_alone(segment)
             print(json.dumps({'mediapipe_alone': asdict(alone)}) if args.json else
                   f'MediaPipe Hands alone on the {alone.frames} {args.frames} frames: '
