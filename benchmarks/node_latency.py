@@ -11,9 +11,10 @@ Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
 Profiles: ``default`` (the node's defaults), ``lag0`` (the defaults with the geometry branch's
 outputs taken in before the next frame, ``engine.geometry_lag: 0``, so that it runs in the
 inference thread), ``every_frame`` (the defaults with the geometry branch on every frame,
-``engine.geometry_interval: 1``) and ``teleop`` (``camera.motion:
+``engine.geometry_interval: 1``), ``teleop`` (``camera.motion:
 static``, a fixed camera, with the default MediaPipe hands: the teleoperation case; BA does not
-apply). Frames:
+apply) and ``teleop_pair`` (the same with ``hands.search_interval: 1``: MediaPipe as it is, one
+graph following both hands, instead of one graph per hand side by side). Frames:
 ``sample``, the first ``--seconds`` of the sample bag (synthetic, 518x378 JPEG), ``real``, a
 15 s crop video panning over a real hand photo from ``../shared/data/real_hands_stills``
 (640x480 JPEG with exact CameraInfo; ``synth/photo_streams.py``), or ``real2``, the same
@@ -81,7 +82,8 @@ REMAPS = ['-r', f'image/compressed:={IMAGE_TOPIC}', '-r', f'camera_info:={INFO_T
 #: Node parameters of each profile.
 PROFILES = {'default': [], 'lag0': ['-p', 'engine.geometry_lag:=0'],
             'every_frame': ['-p', 'engine.geometry_interval:=1'],
-            'teleop': ['-p', 'camera.motion:=static']}
+            'teleop': ['-p', 'camera.motion:=static'],
+            'teleop_pair': ['-p', 'camera.motion:=static', '-p', 'hands.search_interval:=1']}
 STILLS = ROOT.parent / 'shared' / 'data' / 'real_hands_stills'
 REAL_SECONDS = 15.0
 JPEG_QUALITY = 90
@@ -123,7 +125,9 @@ def parse_args() -> argparse.Namespace:
                         help='default: the node as shipped; lag0: the geometry branch taken '
                         'in before the next frame (engine.geometry_lag 0); every_frame: the '
                         'geometry branch on every frame (engine.geometry_interval 1); teleop: '
-                        'a fixed camera (camera.motion static) with MediaPipe hands')
+                        'a fixed camera (camera.motion static) with MediaPipe hands; '
+                        'teleop_pair: the same with MediaPipe as it is, one graph for both '
+                        'hands (hands.search_interval 1)')
     parser.add_argument('--frames', choices=('sample', 'real', 'real2'), default='sample',
                         help='sample: the sample bag; real: a crop video of a real hand photo; '
                         'real2: the same with the photo beside its mirror image (two hands)')
@@ -382,7 +386,7 @@ def main() -> None:
                   f'{alone.fps:.1f} frames/s, p50 {alone.p50_ms:.1f} ms p95 '
                   f'{alone.p95_ms:.1f} ms, {alone.hands_found} hands found', flush=True)
             for profile in args.profiles:
-                for ba in (['none'] if profile == 'teleop' else args.ba):
+                for ba in (['none'] if profile.startswith('teleop') else args.ba):
                     for rate in args.rates:
                         result = run_once(profile, rate, ba, segment, images, work)
                         _print(result, alone, args.json)
