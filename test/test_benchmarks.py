@@ -92,6 +92,8 @@ def test_synth_realism_reports_consistent_overall_figures() -> None:
     assert (overall['found_overlapping'] <= overall['visible_overlapping']
             <= overall['visible_whole'])
     assert overall['found_whole'] <= overall['found'] and 0 <= overall['found_cut_share'] <= 1
+    assert 0 <= overall['found_isolated_share'] <= 1
+    assert overall['found_share'] <= overall['found_ceiling_share'] <= 1
     assert overall['pck'] is None or 0 <= overall['pck'] <= 1
     assert overall['false_positives'] >= 0 and overall['mediapipe_ms_per_frame'] > 0
 
