@@ -19,8 +19,9 @@ graph following both hands, instead of one graph per hand side by side). Frames:
 15 s crop video panning over a real hand photo from ``../shared/data/real_hands_stills``
 (640x480 JPEG with exact CameraInfo; ``synth/photo_streams.py``), or ``real2``, the same
 video with the photo's half around the hand beside its mirror image (a real right and a real
-left hand in every frame: two-handed teleoperation). Beside the node it times
-MediaPipe Hands alone (its video mode as it is, ``hands.search_interval: 1``) on the same
+left hand in every frame: two-handed teleoperation; its CameraInfo is the photo's, as the
+composite is no single camera's image, which the timing does not depend on). Beside the node
+it times MediaPipe Hands alone (its video mode as it is, ``hands.search_interval: 1``) on the same
 decoded frames, one after another in this process, printed with the node's ratio to it.
 
 Latency is measured as receive time minus the replay's publish time, on this machine's
@@ -247,7 +248,8 @@ def write_real_segment(out: Path, two_hands: bool = False) -> int:
     """Write a crop video over a real hand photo (JPEG images, CameraInfo) to ``out``.
 
     With ``two_hands`` the photo's half around its hand is put beside its mirror image, so the
-    video shows a real right hand and a real (mirrored) left hand side by side.
+    video shows a real hand and its mirror image, a hand of the other side, side by side (the
+    CameraInfo stays the photo's).
     """
     frames = list(read_camera_frames(STILLS))
     detector = MediaPipeDetector(HandsConfig(source='mediapipe'))
