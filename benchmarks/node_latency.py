@@ -18,8 +18,8 @@ graph following both hands, instead of one graph per hand side by side). Frames:
 ``sample``, the first ``--seconds`` of the sample bag (synthetic, 518x378 JPEG), ``real``, a
 15 s crop video panning over a real hand photo from ``../shared/data/real_hands_stills``
 (640x480 JPEG with exact CameraInfo; ``synth/photo_streams.py``), or ``real2``, the same
-video with the photo's half around the hand beside its mirror image (a real right and a real
-left hand in every frame: two-handed teleoperation; its CameraInfo is the photo's, as the
+video with the photo's half around the hand beside its mirror image (a real hand of each side
+in every frame: two-handed teleoperation; its CameraInfo is the photo's, as the
 composite is no single camera's image, which the timing does not depend on). Beside the node
 it times MediaPipe Hands alone (its video mode as it is, ``hands.search_interval: 1``) on the same
 decoded frames, one after another in this process, printed with the node's ratio to it.
