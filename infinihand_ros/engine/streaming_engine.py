@@ -353,7 +353,7 @@ class StreamingEngine:
             owed = self._owed
             if owed is None or owed.moment is None:
                 return
-            if self._frames_pushed - owed.record.frame.index > self.config.geometry_lag:
+            if self._owed_late(self._frames_pushed):
                 self._pay_geometry()  # the next frame takes it in
                 return
             if owed.run is not None:
@@ -578,13 +578,15 @@ class StreamingEngine:
         first when that frame needs it: the tracker lost the camera (the frame runs the
         geometry branch first), or the metric scale warms up and the frame has hands.
         """
-        owed = self._owed
-        if owed is None:
+        if self._owed is None:
             return False
         tracker = self.pose_track.tracker
-        return (frame.index - owed.record.frame.index > self.config.geometry_lag
-                or (tracker.needs_depth and tracker.lost)
+        return (self._owed_late(frame.index) or (tracker.needs_depth and tracker.lost)
                 or (self.pose_track.scale_state == 'warmup' and bool(frame.found().hands)))
+
+    def _owed_late(self, index: int) -> bool:
+        """Return whether frame ``index`` comes more than ``geometry_lag`` after the owed one."""
+        return index - self._owed.record.frame.index > self.config.geometry_lag
 
     def _owed_geometry(self, owed: _Owed, in_worker: bool = False) -> CameraSpaceFrame:
         """Run the geometry branch on a frame answered first; return its record.
