@@ -59,6 +59,9 @@ def main() -> None:
     parser.add_argument('--frames', type=int, default=200, help='frames of the still camera')
     parser.add_argument('--geometry-intervals', type=int, nargs='+', default=[1, 3],
                         help='tracker rows: the geometry branch on every n-th frame')
+    parser.add_argument('--geometry-lags', type=int, nargs='+', default=[0, 1],
+                        help='for n > 1, rows with the outputs taken in this many frames late '
+                        '(engine.geometry_lag; below n)')
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
     torch.set_num_threads(1)
@@ -81,9 +84,9 @@ def main() -> None:
     turning = rotation_stream(photo.rgb, photo.intrinsics, truth,
                               Intrinsics(400.0, 400.0, 159.5, 119.5, 320, 240))
     report = {}
-    runs = [(f'tracker, geometry every {n}', True, n, 0) for n in args.geometry_intervals]
-    runs += [(f'tracker, geometry every {n}, a frame late', True, n, 1)
-             for n in args.geometry_intervals if n > 1]
+    runs = [(f'tracker, geometry every {n}' + (f', {lag} frame(s) late' if lag else ''), True,
+             n, lag) for n in args.geometry_intervals for lag in args.geometry_lags
+            if lag == 0 or lag < n]
     for name, tracker, interval, lag in runs + [('network', False, 1, 0)]:
         results, statistics, skipped = run(still, tracker, interval, lag)
         drift_m = np.array([np.linalg.norm(r.camera_pose.translation) for r in results])

@@ -10,19 +10,20 @@ Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
 --rate r/10``) and listens in this process to the replayed images and to ``~/camera_pose``.
 Profiles: ``default`` (the node's defaults), ``lag0`` (the defaults with the geometry branch's
 outputs taken in before the next frame, ``engine.geometry_lag: 0``, so that it runs in the
-inference thread), ``every_frame`` (the defaults with the geometry branch on every frame,
-``engine.geometry_interval: 1``), ``teleop`` (``camera.motion:
+inference thread), ``lag1`` (taken in a frame late, before the second frame after it, instead of
+the node's two frames late: ``engine.geometry_lag: 1``), ``every_frame`` (the defaults with the
+geometry branch on every frame, ``engine.geometry_interval: 1``), ``teleop`` (``camera.motion:
 static``, a fixed camera, with the default MediaPipe hands: the teleoperation case; BA does not
 apply) and ``teleop_pair`` (the same with ``hands.search_interval: 1``: MediaPipe as it is, one
-graph following both hands, instead of one graph per hand side by side). Frames:
-``sample``, the first ``--seconds`` of the sample bag (synthetic, 518x378 JPEG), ``real``, a
-15 s crop video panning over a real hand photo from ``../shared/data/real_hands_stills``
-(640x480 JPEG with exact CameraInfo; ``synth/photo_streams.py``), or ``real2``, the same
-video with the photo's half around the hand beside its mirror image (a real hand of each side
-in every frame: two-handed teleoperation; its CameraInfo is the photo's, as the
-composite is no single camera's image, which the timing does not depend on). Beside the node
-it times MediaPipe Hands alone (its video mode as it is, ``hands.search_interval: 1``) on the same
-decoded frames, one after another in this process, printed with the node's ratio to it.
+graph following both hands, instead of one graph per hand side by side). Frames: ``sample``, the
+first ``--seconds`` of the sample bag (synthetic, 518x378 JPEG), ``real``, a 15 s crop video
+panning over a real hand photo from ``../shared/data/real_hands_stills`` (640x480 JPEG with exact
+CameraInfo; ``synth/photo_streams.py``), or ``real2``, the same video with the photo's half around
+the hand beside its mirror image (a real hand of each side in every frame: two-handed
+teleoperation; its CameraInfo is the photo's, as the composite is no single camera's image, which
+the timing does not depend on). Beside the node it times MediaPipe Hands alone (its video mode as
+it is, ``hands.search_interval: 1``) on the same decoded frames, one after another in this process,
+printed with the node's ratio to it.
 
 Latency is measured as receive time minus the replay's publish time, on this machine's
 monotonic clock: the time this process receives an output minus the time it received the image
@@ -82,6 +83,7 @@ POSE_TOPIC = '/infinihand_estimator/camera_pose'
 REMAPS = ['-r', f'image/compressed:={IMAGE_TOPIC}', '-r', f'camera_info:={INFO_TOPIC}']
 #: Node parameters of each profile.
 PROFILES = {'default': [], 'lag0': ['-p', 'engine.geometry_lag:=0'],
+            'lag1': ['-p', 'engine.geometry_lag:=1'],
             'every_frame': ['-p', 'engine.geometry_interval:=1'],
             'teleop': ['-p', 'camera.motion:=static'],
             'teleop_pair': ['-p', 'camera.motion:=static', '-p', 'hands.search_interval:=1']}
@@ -123,8 +125,10 @@ def parse_args() -> argparse.Namespace:
                         help="bundle adjustment: none, the engine's worker (the node's "
                         'default) or the BA node')
     parser.add_argument('--profiles', nargs='+', default=list(PROFILES), choices=list(PROFILES),
-                        help='default: the node as shipped; lag0: the geometry branch taken '
-                        'in before the next frame (engine.geometry_lag 0); every_frame: the '
+                        help='default: the node as shipped; lag0, lag1: the geometry branch '
+                        'taken in before the next frame, or the one after it '
+                        '(engine.geometry_lag 0, 1; the node takes it in two frames late); '
+                        'every_frame: the '
                         'geometry branch on every frame (engine.geometry_interval 1); teleop: '
                         'a fixed camera (camera.motion static) with MediaPipe hands; '
                         'teleop_pair: the same with MediaPipe as it is, one graph for both '

@@ -33,7 +33,6 @@ ENGINE_SECTION: Final = 'engine'
 MODES: Final = ('per_frame', 'windowed')
 CAMERA_MOTIONS: Final = ('estimate', 'static')
 CPU_PRECISIONS: Final = ('auto', 'fp32')
-GEOMETRY_LAGS: Final = (0, 1)
 
 
 def check_device(name: str, key: str = 'engine.device') -> None:
@@ -147,10 +146,11 @@ class EngineConfig:
             first (the reference path).
         geometry_lag: for such a frame answered first, 0: the pose track takes its geometry
             branch's outputs before the next frame (``catch_up`` runs it in the caller's
-            thread); 1: one frame later (the next frame is tracked from the image too), so a
-            live caller's ``catch_up`` runs it in a worker thread, paused while a frame is
-            pushed, and the next frame's answer does not wait for it (lower latency; slightly
-            less exact tracking, as a new tracker reference comes a frame later).
+            thread); n >= 1: n frames later (the n frames after it are tracked from the image
+            too), so a live caller's ``catch_up`` runs it in a worker thread, paused while a
+            frame is pushed, and the next frames' answers do not wait for it (lower latency;
+            slightly less exact tracking, as a new tracker reference comes n frames later).
+            Below ``geometry_interval`` (when that is above 1).
         device: torch device ('cpu', 'cuda', 'cuda:1', ...), checked at load.
         cpu_precision: on the CPU, 'auto' runs the aggregator in bf16 where the CPU computes
             bf16 natively (AVX512-BF16 or AMX, checked at start-up; float32 elsewhere), 'fp32'
@@ -209,9 +209,12 @@ class EngineConfig:
                          keyframe_interval=self.keyframe_interval,
                          geometry_interval=self.geometry_interval)
         require_at_least('engine', 0, static_intrinsics_frames=self.static_intrinsics_frames)
-        if self.geometry_lag not in GEOMETRY_LAGS:
-            raise ConfigError(f'engine.geometry_lag must be one of {list(GEOMETRY_LAGS)}, got '
-                              f'{self.geometry_lag!r}')
+        require_at_least('engine', 0, geometry_lag=self.geometry_lag)
+        if self.geometry_interval > 1 and self.geometry_lag >= self.geometry_interval:
+            raise ConfigError(f'engine.geometry_lag ({self.geometry_lag}) must be below '
+                              f'engine.geometry_interval ({self.geometry_interval}): set it to '
+                              f'{self.geometry_interval - 1} or less (the outputs of a '
+                              'geometry frame are taken in before the next one runs)')
         check_device(self.device)
 
 

@@ -1,34 +1,33 @@
 """The one streaming engine: push frames, get per-frame camera poses and world-space hands.
 
 Data flows one way. Each frame is checked and fitted to the model (``frame_input``), then the
-paper's camera-space pass (``InfiniHandModel``: geometry through the streaming memory, poses,
-boxes from masks, hand branch) runs per block. Frame by frame, in order, the camera-space record
-then goes to the pose track (its per-frame tracker measures the pose in the image, with the
-network's pose as prior; metric scale from the hands; BA corrections), to the
-bundle-adjustment backend (keyframes; ``engine/ba_backend.py``), its hands are placed in the
-world once, with the track's best pose (the identity with ``camera_motion: static``), and the
-output stage (``engine/output/``: identity, shared shape, smoothing) gives the result every
-consumer gets. The depth head runs only on the frames whose depth is used (a new tracker
-reference, a metric-scale sample, a keyframe for BA; every keyframe with ``depth_maps``). A fixed
-camera whose hands come from outside the model (``camera_motion: static`` with MediaPipe) skips
-the geometry branch wherever the intrinsics are known (given, or fixed from the first frames'
-predictions): the hand source is all such a frame needs. A moving camera with such a hand
-source runs the geometry branch on every ``geometry_interval``-th frame in per-frame mode (and
-wherever the tracker needs depth: a new reference, or first, with the network's pose as prior,
-where it lost the camera); every other frame is tracked from the image alone, with the last
-intrinsics, and carries no depth. Without BA, a frame due for the geometry branch while the
-tracker holds the camera is also tracked from the image first and its result goes out at once;
-the geometry branch then runs on it in ``catch_up()`` (a live caller's idle time after
-publishing) or at the start of the next call, and the pose track takes its outputs before the
-next frame. With ``geometry_lag: 1`` they come one frame later: the next frame is tracked from
-the image too, and they are taken in before the frame after it (or before a frame that needs
-them first: the tracker lost the camera, the metric scale still warms up); ``catch_up()`` then
-starts the branch in a worker thread, paused whenever a frame is being pushed, so the next
-frame's answer does not wait for it. Results do not depend on when it runs. A hand
-source that reads images (MediaPipe) does so in its own thread, in push order, while the model
-runs on the frame. For a fixed camera a live caller can start it earlier, when the image arrives
-(``detect_ahead``): the hands of the next frame are then read while the last one is still being
-finished and published.
+paper's camera-space pass (``InfiniHandModel``: geometry through the streaming memory, poses, boxes
+from masks, hand branch) runs per block. Frame by frame, in order, the camera-space record then
+goes to the pose track (its per-frame tracker measures the pose in the image, with the network's
+pose as prior; metric scale from the hands; BA corrections), to the bundle-adjustment backend
+(keyframes; ``engine/ba_backend.py``), its hands are placed in the world once, with the track's
+best pose (the identity with ``camera_motion: static``), and the output stage (``engine/output/``:
+identity, shared shape, smoothing) gives the result every consumer gets. The depth head runs only
+on the frames whose depth is used (a new tracker reference, a metric-scale sample, a keyframe for
+BA; every keyframe with ``depth_maps``). A fixed camera whose hands come from outside the model
+(``camera_motion: static`` with MediaPipe) skips the geometry branch wherever the intrinsics are
+known (given, or fixed from the first frames' predictions): the hand source is all such a frame
+needs. A moving camera with such a hand source runs the geometry branch on every
+``geometry_interval``-th frame in per-frame mode (and wherever the tracker needs depth: a new
+reference, or first, with the network's pose as prior, where it lost the camera); every other frame
+is tracked from the image alone, with the last intrinsics, and carries no depth. Without BA, a
+frame due for the geometry branch while the tracker holds the camera is also tracked from the image
+first and its result goes out at once; the geometry branch then runs on it in ``catch_up()`` (a
+live caller's idle time after publishing) or at the start of the next call, and the pose track
+takes its outputs before the next frame. With ``geometry_lag: n`` (n >= 1) they come n frames
+later: the next n frames are tracked from the image too, and they are taken in before the frame
+after those (or before a frame that needs them first: the tracker lost the camera, the metric scale
+still warms up); ``catch_up()`` then starts the branch in a worker thread, paused whenever a frame
+is being pushed, so the next frames' answers do not wait for it. Results do not depend on when it
+runs. A hand source that reads images (MediaPipe) does so in its own thread, in push order, while
+the model runs on the frame. For a fixed camera a live caller can start it earlier, when the image
+arrives (``detect_ahead``): the hands of the next frame are then read while the last one is still
+being finished and published.
 
 The first ``anchor_frames`` frames are held back and processed together (the paper's anchor
 context), in both modes. After that, per-frame mode runs each frame as it arrives; windowed mode
@@ -340,7 +339,7 @@ class StreamingEngine:
 
         For a live caller, right after publishing a result. Where the next frame would take
         its outputs in, it runs (or, started earlier, is waited for) here, so the next frame
-        does not wait for it; with ``geometry_lag: 1``, right after the frame it belongs to, it
+        does not wait for it; with ``geometry_lag`` >= 1, right after the frame it belongs to, it
         starts in a worker thread instead, held while a frame is being pushed, so that
         the next frame's answer does not wait for it either. Without catch_up the call that
         needs it runs it. Results are the same either way.
@@ -541,7 +540,7 @@ class StreamingEngine:
         when the tracker lost the camera (its network pose is the prior), after its result
         for a new reference; so does a frame with hands while the metric scale warms up (its
         depth gives the samples); it always comes first with BA (its keyframes carry their
-        depth). The frame after one whose geometry is still owed (``geometry_lag: 1``) is
+        depth). A frame after one whose geometry is still owed (``geometry_lag`` >= 1) is
         'tracked' (the owed one brings the depth it would need).
         """
         if frame.pixels is None:
@@ -574,7 +573,7 @@ class StreamingEngine:
     def _owed_due(self, frame: PreparedFrame) -> bool:
         """Return whether the owed geometry branch is taken in before ``frame``.
 
-        Before the frame after it, or with ``geometry_lag: 1`` before the second one, or the
+        Before the frame after it, or with ``geometry_lag: n`` before the (n + 1)-th, or the
         first when that frame needs it: the tracker lost the camera (the frame runs the
         geometry branch first), or the metric scale warms up and the frame has hands.
         """

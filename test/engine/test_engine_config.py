@@ -85,6 +85,18 @@ def test_bad_nested_values_name_their_key(tmp_path) -> None:
                 tmp_path, f'engine:\n  detection: {{region_join_px: {bad}}}\n'))
 
 
+def test_geometry_lag_stays_below_the_geometry_interval(tmp_path) -> None:
+    """A lag of n frames needs n < geometry_interval; bad values name the key."""
+    assert load_engine_config(_write(
+        tmp_path, 'engine: {geometry_interval: 3, geometry_lag: 2}\n')).geometry_lag == 2
+    assert EngineConfig(geometry_interval=1, geometry_lag=4).geometry_lag == 4  # unused there
+    with pytest.raises(ConfigError, match='geometry_lag .3. must be below'):
+        EngineConfig(geometry_interval=3, geometry_lag=3)
+    for bad in ('-1', '1.5', 'true'):
+        with pytest.raises(ConfigError, match='engine.geometry_lag'):
+            load_engine_config(_write(tmp_path, f'engine: {{geometry_lag: {bad}}}\n'))
+
+
 def test_dump_config_round_trips_complete(tmp_path) -> None:
     """The resolved config dumps to YAML that loads back equal, even with require_complete."""
     config = EngineConfig(mode='windowed', window=4, bundle_adjustment=BAConfig())

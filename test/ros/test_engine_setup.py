@@ -20,7 +20,7 @@ def _node(**selection: object) -> EstimatorConfig:
 
 
 def test_defaults_are_the_engine_file_with_the_node_settings() -> None:
-    """Defaults: config/engine.yaml with MediaPipe hands, no BA, geometry a frame late.
+    """Defaults: config/engine.yaml with MediaPipe hands, no BA, geometry two frames late.
 
     (The engine file takes a frame's owed geometry in before the next frame.) in_process BA:
     config/ba.yaml.
@@ -28,8 +28,8 @@ def test_defaults_are_the_engine_file_with_the_node_settings() -> None:
     node = engine_config_for(_node())
     assert node.hands.source == 'mediapipe' and load_engine_config().hands.source == 'infinihand'
     assert load_engine_config().bundle_adjustment is None and node.bundle_adjustment is None
-    assert (node.geometry_lag, load_engine_config().geometry_lag) == (1, 0)
-    assert node == replace(load_engine_config(), hands=node.hands, geometry_lag=1)
+    assert (node.geometry_lag, load_engine_config().geometry_lag) == (2, 0)
+    assert node == replace(load_engine_config(), hands=node.hands, geometry_lag=2)
     assert engine_config_for(_node(bundle_adjustment='in_process')).bundle_adjustment == \
         load_ba_config()
     config = engine_config_for(_node(mode='windowed', keyframe_interval=3, geometry_interval=1,

@@ -56,10 +56,10 @@ class EngineSelection:
         'from the image alone with the last intrinsics (1: every frame, the reference path).',
         1, _BIG_INT)
     geometry_lag: int = parameter(
-        1, 'A frame answered before its geometry branch (geometry_interval > 1, no BA): 1: the '
-        'camera tracker takes its outputs a frame later, so the branch runs in the background '
-        'and the next frame does not wait for it (lower latency, slightly less exact tracking); '
-        '0: before the next frame.', 0, 1)
+        2, 'A frame answered before its geometry branch (geometry_interval > 1, no BA): n >= 1: '
+        'the camera tracker takes its outputs n frames later, so the branch runs in the '
+        'background and the next n frames do not wait for it (lower latency, slightly less '
+        'exact tracking); 0: before the next frame. Below geometry_interval.', 0, _BIG_INT)
     bundle_adjustment: str = parameter(
         'none', 'Bundle adjustment: none (each pose measured by the per-frame camera tracker '
         "only; the best published poses on our test data); in_process (the engine's background "

@@ -228,8 +228,8 @@ class EstimatorNode(Node):
         """Take the newest image, run it through the pipeline, publish; until closed.
 
         After publishing, the engine catches up on the geometry a frame answered first still
-        owes (``StreamingEngine.catch_up``): here, or with ``engine.geometry_lag`` 1 (the
-        default) in the engine's worker thread, paused while the next image is processed.
+        owes (``StreamingEngine.catch_up``): here, or with ``engine.geometry_lag`` >= 1 (2 by
+        default) in the engine's worker thread, paused while the next images are processed.
         While no image comes, the BA node's corrections are still applied (a stream that
         paused or ended right after a keyframe gets its refinement).
         """
