@@ -41,6 +41,15 @@ class PoseFields:
         """Build from a camera-to-world pose."""
         return cls.from_rotation(pose.rotation, pose.translation)
 
+    @classmethod
+    def from_camera_poses(cls, poses: list[CameraPose]) -> list['PoseFields']:
+        """Build from camera-to-world poses, their rotations converted in one call."""
+        if not poses:
+            return []
+        quaternions = geometry.matrix_to_quaternion_xyzw(np.stack([p.rotation for p in poses]))
+        return [cls(np.asarray(pose.translation, dtype=np.float64).copy(), quaternion)
+                for pose, quaternion in zip(poses, quaternions)]
+
 
 @dataclass(frozen=True)
 class HandOutput:

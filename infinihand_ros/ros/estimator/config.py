@@ -162,10 +162,11 @@ class OutputSwitches:
     camera_info: bool = parameter(True, 'Publish ~/camera_info (the intrinsics used).')
     path_length: int = parameter(1000, 'Poses kept in ~/camera_path (oldest dropped first).', 1,
                                  1_000_000)
-    path_period_s: float = parameter(1.0, 'Publish ~/camera_path and its marker at most once '
-                                     'per this many seconds of image time, and whenever the '
-                                     'trajectory is refined (a long path takes tens of ms to '
-                                     'send); 0.0: with every frame.', 0.0, 3600.0)
+    path_period_s: float = parameter(1.0, 'Publish ~/camera_path and its marker once per this '
+                                     'many seconds of image time, a refined trajectory (new '
+                                     'scale, BA) re-read just before (a long path takes tens of '
+                                     'ms to re-read and send); 0.0: with every frame.', 0.0,
+                                     3600.0)
 
     def __post_init__(self) -> None:
         require_at_least('outputs', 1, path_length=self.path_length)

@@ -278,7 +278,7 @@ class EstimatorNode(Node):
         for result in results:
             self.path.add(result.frame_index, result.timestamp_ns,
                           PoseFields.from_camera_pose(result.camera_pose), result.pose_version,
-                          self._best_pose)
+                          self.engine.best_pose)
         period_ns = int(self.config.outputs.path_period_s * NS_PER_S)
         for position, result in enumerate(results, start=1):
             # The path holds every result of this push: publish it with the newest one only.
@@ -299,11 +299,6 @@ class EstimatorNode(Node):
         if self._ba_node is not None:
             self.engine.fold_in_ba()
             self._ba_node.report_folded_in()
-
-    def _best_pose(self, frame_index: int) -> PoseFields | None:
-        """Return the engine's current best pose of a frame, None once it left the track."""
-        pose = self.engine.best_pose(frame_index)
-        return None if pose is None else PoseFields.from_camera_pose(pose)
 
     def _intrinsics_for(self, stamp_ns: int, width: int, height: int) -> IntrinsicsChoice:
         """Pair an image with its CameraInfo, waiting a little for one that comes just after.
