@@ -1,5 +1,7 @@
 """Node start-up and shutdown (ros/node_process.py): SIGINT mid-spin is a clean exit."""
 
+import gc
+
 from infinihand_ros.ros import node_process
 import pytest
 import rclpy
@@ -55,3 +57,23 @@ def test_an_rcl_error_while_running_is_raised(monkeypatch: pytest.MonkeyPatch) -
     with pytest.raises(node_process.RCLError, match='something else'):
         node_process.run_node(lambda: node, 'test_node', args=[])
     assert node.closed and not rclpy.ok()
+
+
+def test_what_start_up_made_is_frozen_out_of_the_collector(monkeypatch: pytest.MonkeyPatch
+                                                           ) -> None:
+    """The node spins with the start-up's objects frozen: full collections skip them."""
+    node, frozen = _Node(), []
+
+    class Recording(_Executor):
+        def spin(self) -> None:
+            frozen.append(gc.get_freeze_count())
+            super().spin()
+
+    gc.unfreeze()
+    monkeypatch.setattr(node_process, 'SingleThreadedExecutor',
+                        lambda: Recording(KeyboardInterrupt(), True))
+    try:
+        assert node_process.run_node(lambda: node, 'test_node', args=[]) == node_process.EXIT_OK
+    finally:
+        gc.unfreeze()
+    assert frozen and frozen[0] > 0
