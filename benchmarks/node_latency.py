@@ -1,7 +1,8 @@
 """Live estimator figures: output rate, latency and drops with a bag replayed at 10/30 Hz.
 
     python benchmarks/node_latency.py [--rates 10 30] [--ba none in_process node]
-        [--profiles default teleop] [--frames sample|real|real2] [--seconds S] [--json]
+        [--profiles default teleop] [--frames sample|real|real2] [--seconds S]
+        [--repeat N] [--json]
 
 Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
 ``source scripts/env.sh``. For each profile, input rate and BA setting it starts the installed
@@ -29,11 +30,15 @@ Latency is measured as receive time minus the replay's publish time, on this mac
 monotonic clock: the time this process receives an output minus the time it received the image
 with the same stamp (shared-memory transport: the image arrives here within a fraction of a
 millisecond of its publication). No ``/clock`` is involved. Printed per run: output rate (Hz,
-outputs over the span from first to last output), latency p50/p95 (ms), the node's own
+outputs over the span from first to last output), latency p50/p95 (ms) over all outputs, and
+apart: p50/p95 after the first 2 s of images and the largest before (the start-up: anchor
+frames held back together, the metric scale's warm-up, the first palm search), the node's own
 processing time p50/p95 (image arrival to publication, from its /diagnostics), and drops: images
 the node received but replaced before inference (``frames_dropped`` of its last /diagnostics), and
 images of the segment that never reached the node (``not_received``). With the BA node, the
-BA results the estimator applied. Figures only; nothing is asserted.
+BA results the estimator applied. Figures only; nothing is asserted. ``--repeat N`` replays the
+frames N times in a row with the stamps going on (a scene cut where each copy begins, no stream
+restart): figures over a long run, where the start-up weighs less.
 """
 
 import argparse
@@ -93,6 +98,9 @@ JPEG_QUALITY = 90
 READY = 'ready:'
 SETTLE_S = 3.0
 MS_PER_S = 1e3
+#: Outputs of images this soon after the first one are the start-up (anchor frames held back,
+#: metric-scale warm-up, first palm search); the steady-state figures leave them out.
+START_UP_S = 2.0
 
 
 @dataclass(frozen=True)
@@ -107,6 +115,9 @@ class RunFigures:
     output_rate_hz: float
     latency_p50_ms: float
     latency_p95_ms: float
+    steady_p50_ms: float
+    steady_p95_ms: float
+    start_up_max_ms: float
     processing_p50_ms: float
     processing_p95_ms: float
     frames_received: int
@@ -138,8 +149,13 @@ def parse_args() -> argparse.Namespace:
                         'real2: the same with the photo beside its mirror image (two hands)')
     parser.add_argument('--seconds', type=float, default=0.0,
                         help='replay only the first S seconds of the bag (0: all of it)')
+    parser.add_argument('--repeat', type=int, default=1,
+                        help='replay the frames this many times in a row (stamps going on), '
+                        'for figures over a long run')
     parser.add_argument('--json', action='store_true', help='print one JSON line per run')
     args = parser.parse_args()
+    if args.repeat < 1:
+        parser.error('--repeat must be at least 1')
     if any(rate <= 0 for rate in args.rates):
         parser.error(f'--rates must be > 0, got {args.rates}')
     if args.seconds < 0:
@@ -233,19 +249,62 @@ def stop(process: subprocess.Popen) -> None:
 def figures(profile: str, rate_hz: float, ba: str, images: int, listener: Listener
             ) -> RunFigures:
     """Compute one run's figures from what the listener received."""
-    pairs = [(listener.outputs[s] - listener.inputs[s]) / NS_PER_S * MS_PER_S
-             for s in listener.outputs if s in listener.inputs]
-    p50, p95 = np.percentile(pairs, [50.0, 95.0]) if pairs else (float('nan'),) * 2
+    first = min(listener.inputs) if listener.inputs else 0
+    pairs = {s: (listener.outputs[s] - listener.inputs[s]) / NS_PER_S * MS_PER_S
+             for s in listener.outputs if s in listener.inputs}
+    start_up = [ms for s, ms in pairs.items() if s - first < START_UP_S * NS_PER_S]
+    steady = [ms for s, ms in pairs.items() if s - first >= START_UP_S * NS_PER_S]
+
+    def percentiles(values: list[float]) -> tuple[float, float]:
+        if not values:
+            return float('nan'), float('nan')
+        p50, p95 = np.percentile(values, [50.0, 95.0])
+        return float(p50), float(p95)
+
     times = sorted(listener.outputs.values())
     span_s = (times[-1] - times[0]) / NS_PER_S if len(times) > 1 else 0.0
     values = listener.diagnostics
     received = int(values.get('frames_received', 0))
     return RunFigures(profile, rate_hz, ba, images, len(times),
-                      (len(times) - 1) / span_s if span_s else 0.0, float(p50), float(p95),
+                      (len(times) - 1) / span_s if span_s else 0.0,
+                      *percentiles(list(pairs.values())), *percentiles(steady),
+                      max(start_up, default=float('nan')),
                       float(values.get('processing_p50_ms', 'nan')),
                       float(values.get('processing_p95_ms', 'nan')), received,
                       int(values.get('frames_dropped', 0)), images - received,
                       int(values.get('ba_results_applied', 0)))
+
+
+def repeat_segment(source: Path, out: Path, times: int) -> int:
+    """Write ``times`` copies of a segment one after another to ``out``; return the images.
+
+    Each copy's stamps (log times and headers) follow the last copy's by one frame period, so
+    the stream goes on without a restart (the scene cuts where a copy begins).
+    """
+    store = build_typestore()
+    with AnyReader([source], default_typestore=store) as reader:
+        connections = list(reader.connections)
+        messages = [(connection, log_time, reader.deserialize(raw, connection.msgtype))
+                    for connection, log_time, raw in reader.messages(connections=connections)]
+    stamps = sorted({log_time for connection, log_time, _ in messages
+                     if connection.topic == IMAGE_TOPIC})
+    period = stamps[1] - stamps[0] if len(stamps) > 1 else NS_PER_S // BAG_FPS
+    span = stamps[-1] - stamps[0] + period
+    images = 0
+    with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        added = {c.topic: writer.add_connection(c.topic, c.msgtype, typestore=store)
+                 for c in connections}
+        for copy_index in range(times):
+            shift = copy_index * span
+            for connection, log_time, message in messages:
+                stamp = ns_from_stamp(message.header.stamp) + shift
+                message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, NS_PER_S)
+                writer.write(added[connection.topic], log_time + shift,
+                             store.serialize_cdr(message, connection.msgtype))
+                message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp - shift,
+                                                                                NS_PER_S)
+                images += int(connection.topic == IMAGE_TOPIC)
+    return images
 
 
 def write_real_segment(out: Path, two_hands: bool = False) -> int:
@@ -365,7 +424,9 @@ def _print(result: RunFigures, alone: MediaPipeFigures, as_json: bool) -> None:
           f'{result.outputs}/{result.images} frames out '
           f'({100.0 * result.outputs / result.images:.0f} %) at {result.output_rate_hz:.1f} Hz '
           f'({rate_ratio:.2f}x MediaPipe alone), latency p50 {result.latency_p50_ms:.0f} ms '
-          f'p95 {result.latency_p95_ms:.0f} ms ({latency_ratio:.1f}x MediaPipe p95; node '
+          f'p95 {result.latency_p95_ms:.0f} ms (after the first {START_UP_S:g} s: p50 '
+          f'{result.steady_p50_ms:.0f} p95 {result.steady_p95_ms:.0f} ms; before: max '
+          f'{result.start_up_max_ms:.0f} ms; {latency_ratio:.1f}x MediaPipe p95; node '
           f'processing p50 {result.processing_p50_ms:.0f} p95 {result.processing_p95_ms:.0f} '
           f'ms), dropped '
           f'{result.frames_dropped}, not received {result.not_received}, BA results '
@@ -383,10 +444,14 @@ def main() -> None:
     try:
         with tempfile.TemporaryDirectory(prefix='node_latency_') as tmp:
             work = Path(tmp)
-            segment = work / 'segment'
-            images = (write_segment(args.seconds, segment) if args.frames == 'sample'
-                      else write_real_segment(segment, two_hands=args.frames == 'real2'))
-            alone = mediapipe_alone(segment)
+            frames = work / 'frames'
+            images = (write_segment(args.seconds, frames) if args.frames == 'sample'
+                      else write_real_segment(frames, two_hands=args.frames == 'real2'))
+            alone = mediapipe_alone(frames)
+            segment = frames
+            if args.repeat > 1:
+                segment = work / 'segment'
+                images = repeat_segment(frames, segment, args.repeat)
             print(json.dumps({'mediapipe_alone': asdict(alone)}) if args.json else
                   f'MediaPipe Hands alone on the {alone.frames} {args.frames} frames: '
                   f'{alone.fps:.1f} frames/s, p50 {alone.p50_ms:.1f} ms p95 '
