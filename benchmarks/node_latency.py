@@ -44,6 +44,7 @@ restart): figures over a long run, where the start-up weighs less.
 import argparse
 from dataclasses import asdict
 from dataclasses import dataclass
+from dataclasses import replace
 import json
 import os
 from pathlib import Path
@@ -60,6 +61,7 @@ from infinihand_ros.bag.camera_msgs import compressed_msg_to_image
 from infinihand_ros.bag.camera_msgs import image_to_compressed_msg
 from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.bag.messages import ns_from_stamp
+from infinihand_ros.bag.messages import stamp_from_ns
 from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.bag.typestore import CAMERA_INFO_MSG
 from infinihand_ros.bag.typestore import COMPRESSED_IMAGE_MSG
@@ -297,12 +299,10 @@ def repeat_segment(source: Path, out: Path, times: int) -> int:
         for copy_index in range(times):
             shift = copy_index * span
             for connection, log_time, message in messages:
-                stamp = ns_from_stamp(message.header.stamp) + shift
-                message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp, NS_PER_S)
+                stamp = stamp_from_ns(store, ns_from_stamp(message.header.stamp) + shift)
+                shifted = replace(message, header=replace(message.header, stamp=stamp))
                 writer.write(added[connection.topic], log_time + shift,
-                             store.serialize_cdr(message, connection.msgtype))
-                message.header.stamp.sec, message.header.stamp.nanosec = divmod(stamp - shift,
-                                                                                NS_PER_S)
+                             store.serialize_cdr(shifted, connection.msgtype))
                 images += int(connection.topic == IMAGE_TOPIC)
     return images
 
