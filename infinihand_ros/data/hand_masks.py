@@ -1,6 +1,6 @@
 """Per-hand masks and tight boxes rendered from hand annotations (paper Sec. 3.1).
 
-The built-in hand's surface is the synthetic generator's: a palm slab and capsules around the
+The built-in hand's surface is the synthetic generator's: a palm slab and round cones around the
 skeleton (``mano/capsules.py``) with the generator's joint radii, intersected with each pixel's
 ray and z-tested between the two hands, so corpus masks match the generator's wherever no scene
 object covers the hand. Real MANO meshes are filled triangle by triangle, far to near.

@@ -1,7 +1,11 @@
 """Capsule hands: a palm slab and capsules around a skeleton, and their analytic ray hits.
 
-A capsule is the set of points within ``radius`` of a segment (a cylinder with two hemispherical
-caps). A hand is a flat palm slab, capsules around the 15 bones of the fingers and the thumb,
+A capsule here is a round cone: the convex hull of two spheres, one at each end of a segment,
+whose radii may differ (a cone tangent to both, closed by the spheres; equal radii give a cylinder
+with two hemispherical caps). Bones are round cones from one joint's sphere to the next, so a
+finger is a sphere-mesh (Tkach et al., SIGGRAPH Asia 2016): a smooth surface that tapers from
+knuckle to tip, continuous across its joints, and deformed by the joints alone. A hand is a flat
+palm slab, capsules around the 15 bones of the fingers and the thumb,
 knuckle bumps and a thenar bulge. The slab is a polygon in the palm's middle plane (from the
 wrist to the MCP row) grown by the palm's half thickness all round: two flat faces plus capsules
 along the polygon's edges, so its rim is round. Rays are those of pixels in the OpenCV optical
@@ -57,7 +61,7 @@ class CapsuleSet:
     Attributes:
         starts: (N, 3) segment starts (m).
         ends: (N, 3) segment ends (m).
-        radii: (N,) radii (m).
+        radii: (N, 2) radius at the start and at the end (m).
         start_caps: (N,) bool, intersect the start cap (False where an earlier capsule of the
             same hand already has a cap at least as large at that point).
         end_caps: (N,) bool, same for the end cap.
@@ -139,7 +143,8 @@ def hand_capsules(joints: np.ndarray, radii: np.ndarray,
                   side: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Build the capsules of a hand: finger bones, knuckles, thenar and the palm slab's rim.
 
-    A bone's radius is the mean of its two joints' radii.
+    A bone runs from its parent joint's sphere to its child joint's (each joint's radius), so
+    the finger tapers and two bones meet on the same sphere.
 
     Args:
         joints: (21, 3) joints, OpenPose order, any frame (m).
@@ -147,7 +152,7 @@ def hand_capsules(joints: np.ndarray, radii: np.ndarray,
         side: 0 left, 1 right.
 
     Returns:
-        (starts (N, 3), ends (N, 3), radii (N,)) of the capsules, the bones first
+        (starts (N, 3), ends (N, 3), radii (N, 2)) of the capsules, the bones first
         (``BONE_CHILDREN``).
 
     """
@@ -157,20 +162,20 @@ def hand_capsules(joints: np.ndarray, radii: np.ndarray,
     centre, axes, polygon, half = _palm(joints, radii, side)
     starts = [joints[JOINT_PARENTS[c]] for c in BONE_CHILDREN]
     ends = [joints[c] for c in BONE_CHILDREN]
-    caps_r = [0.5 * (radii[JOINT_PARENTS[c]] + radii[c]) for c in BONE_CHILDREN]
+    caps_r = [(radii[JOINT_PARENTS[c]], radii[c]) for c in BONE_CHILDREN]
     for mcp in PALM_MCPS:
         knuckle = joints[mcp] - KNUCKLE_BACK_M * scale * axes[2]
         starts.append(knuckle)
         ends.append(knuckle)
-        caps_r.append(KNUCKLE_SCALE * radii[mcp])
+        caps_r.append((KNUCKLE_SCALE * radii[mcp],) * 2)
     palmar = THENAR_PALMAR_M * scale * axes[2]
     starts.append(joints[0] + THENAR_START * (joints[1] - joints[0]) + palmar)
     ends.append(0.5 * (joints[1] + joints[2]) + palmar)
-    caps_r.append(THENAR_RADIUS_M * scale)
+    caps_r.append((THENAR_RADIUS_M * scale,) * 2)
     rim = centre + polygon @ axes[:2]
     starts += list(rim)
     ends += list(np.roll(rim, -1, axis=0))
-    caps_r += [half] * len(rim)
+    caps_r += [(half, half)] * len(rim)
     return np.array(starts), np.array(ends), np.array(caps_r)
 
 
@@ -196,15 +201,16 @@ def build_capsule_set(hands: list[tuple[np.ndarray, np.ndarray, int]]) -> Capsul
     for joints, radii, side in hands:
         starts, ends, caps_r = hand_capsules(joints, radii, side)
         drawn: dict[bytes, float] = {}
-        for start, end, radius in zip(starts, ends, caps_r):
-            caps = [drawn.get(point.tobytes(), -1.0) < radius for point in (start, end)]
-            for point, cap in zip((start, end), caps):
+        for start, end, ends_r in zip(starts, ends, caps_r):
+            caps = [drawn.get(point.tobytes(), -1.0) < radius
+                    for point, radius in zip((start, end), ends_r)]
+            for point, radius, cap in zip((start, end), ends_r, caps):
                 if cap:
                     drawn[point.tobytes()] = radius
-            parts.append((start, end, radius, caps[0], caps[1], side))
+            parts.append((start, end, ends_r, caps[0], caps[1], side))
     if not parts:
         empty = np.zeros((0, 3))
-        return CapsuleSet(empty, empty, np.zeros(0), np.zeros(0, bool), np.zeros(0, bool),
+        return CapsuleSet(empty, empty, np.zeros((0, 2)), np.zeros(0, bool), np.zeros(0, bool),
                           np.zeros(0, int))
     columns = list(zip(*parts))
     return CapsuleSet(np.array(columns[0]), np.array(columns[1]), np.array(columns[2]),
@@ -227,8 +233,9 @@ def capsule_rects(capsules: CapsuleSet, k: np.ndarray, near_m: float, width: int
     Projects each capsule's axis-aligned bounding box; a box that crosses the near plane gets
     the whole image and one behind it (or out of view) gets an empty rectangle (x0 >= x1).
     """
-    lo = np.minimum(capsules.starts, capsules.ends) - capsules.radii[:, None]
-    hi = np.maximum(capsules.starts, capsules.ends) + capsules.radii[:, None]
+    reach = capsules.radii.max(axis=1)[:, None]
+    lo = np.minimum(capsules.starts, capsules.ends) - reach
+    hi = np.maximum(capsules.starts, capsules.ends) + reach
     depth = np.maximum(np.stack([lo[:, 2], hi[:, 2]], axis=1), near_m)[:, None, :]
     ratios = np.stack([lo[:, :2], hi[:, :2]], axis=2)[..., None] / depth[..., None, :]
     ratios = ratios.reshape(len(lo), 2, 4)
@@ -259,6 +266,12 @@ def ray_capsule_depth(rx: np.ndarray, ry: np.ndarray, capsules: CapsuleSet,
                       index: int) -> np.ndarray:
     """First z depth (h, w) where pixel rays (rx (1, w), ry (h, 1), 1) hit capsule ``index``.
 
+    The round cone's side is the cone tangent to its two spheres: with ``y`` the position
+    along the unit axis ``w`` from the start ``a`` and ``sin = (r_a - r_b) / |b - a|``, a
+    point ``p`` lies on it where ``cos^2 |p - a|^2 - y^2 - r_a^2 + 2 r_a sin y = 0`` and
+    ``r_a sin <= y <= |b - a| + r_b sin`` (between the circles where it touches the spheres);
+    a quadratic in the ray parameter. The spheres close it.
+
     Args:
         rx: (1, w) float64 ray x components, ``(u - cx) / fx``.
         ry: (h, 1) float64 ray y components, ``(v - cy) / fy``.
@@ -270,37 +283,55 @@ def ray_capsule_depth(rx: np.ndarray, ry: np.ndarray, capsules: CapsuleSet,
 
     """
     start, end = capsules.starts[index], capsules.ends[index]
-    radius = float(capsules.radii[index])
+    r_start, r_end = (float(r) for r in capsules.radii[index])
     rdrd = (rx * rx + 1.0) + ry * ry
     axis = end - start
-    axis2 = axis @ axis
-    ax_o = -(axis @ start)  # axis . (origin - start)
-    ax_d = (axis[0] * rx + axis[2]) + axis[1] * ry
-    d_o = -((start[0] * rx + start[2]) + start[1] * ry)  # ray . (origin - start)
-    # Side: |(p - start) x axis|^2 = r^2 |axis|^2 with p = t d, a quadratic in t.
-    qa = axis2 * rdrd - ax_d * ax_d
-    qb = axis2 * d_o - ax_o * ax_d
-    disc = qb * qb - qa * (axis2 * (start @ start - radius * radius) - ax_o * ax_o)
+    length = float(np.sqrt(axis @ axis))
+    depth = np.full(np.broadcast(rx, ry).shape, np.nan)
     with np.errstate(invalid='ignore', divide='ignore'):
-        np.sqrt(disc, out=disc)
-        depth = (-qb - disc) / qa
-        along = ax_o + depth * ax_d
-        depth[(qa <= PARALLEL_EPS * axis2) | (along <= 0.0) | (along >= axis2)] = np.nan
+        if length > abs(r_start - r_end):  # else one sphere holds the other: no side
+            unit = axis / length
+            sin = (r_start - r_end) / length
+            cos2 = 1.0 - sin * sin
+            d_w = (unit[0] * rx + unit[2]) + unit[1] * ry
+            o_w = -(unit @ start)  # w . (origin - start)
+            d_o = -((start[0] * rx + start[2]) + start[1] * ry)  # ray . (origin - start)
+            qa = cos2 * rdrd - d_w * d_w
+            qb = cos2 * d_o - d_w * (o_w - r_start * sin)
+            qc = cos2 * (start @ start) - o_w * o_w - r_start * r_start + 2.0 * r_start * sin * o_w
+            root = np.sqrt(qb * qb - qa * qc)
+            tiny = np.abs(qa) <= PARALLEL_EPS * rdrd
+            for sign in (-1.0, 1.0):
+                t = (-qb + sign * root) / qa
+                along = o_w + t * d_w
+                t[tiny | (along < r_start * sin) | (along > length + r_end * sin)] = np.nan
+                np.fmin(depth, t, out=depth)
         if capsules.start_caps[index]:
-            np.fmin(depth, _ray_sphere(rx, ry, rdrd, start, radius), out=depth)
+            np.fmin(depth, _ray_sphere(rx, ry, rdrd, start, r_start), out=depth)
         if capsules.end_caps[index]:
-            np.fmin(depth, _ray_sphere(rx, ry, rdrd, end, radius), out=depth)
+            np.fmin(depth, _ray_sphere(rx, ry, rdrd, end, r_end), out=depth)
     return depth
 
 
 def surface_normals(points: np.ndarray, capsules: CapsuleSet, ids: np.ndarray) -> np.ndarray:
-    """Outward unit normals (N, 3) at points (N, 3) on the surfaces of capsules ``ids`` (N,)."""
+    """Outward unit normals (N, 3) at points (N, 3) on the surfaces of capsules ``ids`` (N,).
+
+    On a round cone the normal runs from the centre of the sphere that touches the surface at
+    the point; that centre lies on the axis, ``sin * |rel - y w|`` before the point's own
+    position ``y`` along it, clipped to the segment.
+    """
     starts = capsules.starts[ids]
     axes = capsules.ends[ids] - starts
+    radii = capsules.radii[ids]
     rel = points - starts
-    along = np.einsum('ij,ij->i', rel, axes) / np.maximum(np.einsum('ij,ij->i', axes, axes),
-                                                          PARALLEL_EPS)
-    normals = rel - np.clip(along, 0.0, 1.0)[:, None] * axes
+    length = np.sqrt(np.maximum(np.einsum('ij,ij->i', axes, axes), PARALLEL_EPS))
+    unit = axes / length[:, None]
+    along = np.einsum('ij,ij->i', rel, unit)
+    radial = np.linalg.norm(rel - along[:, None] * unit, axis=1)
+    sin = np.clip((radii[:, 0] - radii[:, 1]) / length, -1.0, 1.0)
+    centre = np.clip(along - sin / np.sqrt(np.maximum(1.0 - sin * sin, PARALLEL_EPS)) * radial,
+                     0.0, length)
+    normals = rel - centre[:, None] * unit
     return normals / np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), PARALLEL_EPS)
 
 
@@ -312,7 +343,7 @@ def palm_rects(palms: PalmSet, k: np.ndarray, near_m: float, width: int,
         rim = palms.centres[index] + palms.polygons[index] @ palms.axes[index, :2]
         count = len(rim)
         edges = CapsuleSet(rim, np.roll(rim, -1, axis=0),
-                           np.full(count, palms.half_thickness[index]), np.ones(count, bool),
+                           np.full((count, 2), palms.half_thickness[index]), np.ones(count, bool),
                            np.ones(count, bool), np.zeros(count, int))
         edge_rects = capsule_rects(edges, k, near_m, width, height)
         edge_rects = edge_rects[(edge_rects[:, 0] < edge_rects[:, 2])

@@ -1,19 +1,20 @@
-"""Fast z-buffer renderer of a synthetic scene, two capsule hands and their arms (numpy + OpenCV).
+"""Fast z-buffer renderer of a synthetic scene, two hands and their arms (numpy + OpenCV).
 
 Scene surfaces are planar textured quads: each front-facing quad is clipped against the near plane,
 its texture is warped into the bounding rectangle of its projection with one
 ``cv2.warpPerspective`` (plane-to-image homography), and its inverse depth, an affine function of
 the pixel (u, v) on a plane, is z-tested against an inverse-depth buffer inside its polygon.
-Hands are a palm slab (two flat faces and a round rim) with capsules around the finger bones,
-knuckles and thenar (``mano/capsules.py``), intersected analytically with the pixel rays of each
-part's projected bounding box and z-tested in the same buffer, so hands occlude each other and
-are occluded by the table and boxes. An arm (bare forearm, sleeve, upper arm) can be attached to
-each hand; it occludes like a hand but is not part of the hand's mask.
+Hands are a palm slab (two flat faces and a round rim) with round cones around the finger bones
+(tapering from joint to joint), knuckle spheres and a thenar capsule (``mano/capsules.py``),
+intersected analytically with the pixel rays of each part's projected bounding box and z-tested in
+the same buffer, so hands occlude each other and are occluded by the table and boxes. An arm (bare
+forearm, sleeve, upper arm) can be attached to each hand; it occludes like a hand but is not part
+of the hand's mask.
 
-Skin is shaded from smoothed surface normals (the capsule normals averaged over a window about
-half a finger wide, so the capsules' seams do not show), with wrap-around diffuse light, a faint
-specular sheen and lighter palms; silhouettes are anti-aliased. Sensor effects follow: motion
-blur, Gaussian noise and JPEG compression.
+Skin is shaded from smoothed surface normals (the parts' normals averaged over a window about
+half a finger wide, so the seams between the parts do not show), with wrap-around diffuse light,
+a faint specular sheen and lighter palms; silhouettes are anti-aliased. Sensor effects follow:
+motion blur, Gaussian noise and JPEG compression.
 
 Pixel convention (OpenCV): pixel (column i, row j) shows the ray through image point
 (u, v) = (i, j), i.e. ``K^-1 [i, j, 1]`` in the OpenCV optical camera frame (x right, y down,
@@ -101,7 +102,8 @@ class HandGeometry:
     Attributes:
         side: 0 left, 1 right.
         joints_world: (21, 3) joints in the OpenPose order, world frame, metres.
-        radii: (21,) capsule radius at each joint (m); a bone uses the mean of its two joints.
+        radii: (21,) radius of the sphere at each joint (m); a bone tapers from its start
+            joint's to its end joint's.
         skin_rgb: skin colour (R, G, B) in 0-255.
         arm: the arm attached at the wrist (not part of the hand's mask); None for none.
 
@@ -382,7 +384,8 @@ def _bodies(frame: _Frame, hands: Sequence[HandGeometry]) -> _Bodies:
     parts = [hand_set]
     for hand in arms:
         points = to_cam(hand.arm.points_world)
-        parts.append(caps.CapsuleSet(points[:3], points[1:], np.asarray(hand.arm.radii, float),
+        radii = np.repeat(np.asarray(hand.arm.radii, float)[:, None], 2, axis=1)
+        parts.append(caps.CapsuleSet(points[:3], points[1:], radii,
                                      np.array([False, True, True]), np.ones(3, bool),
                                      np.full(3, hand.side)))
         albedo.append(np.array([hand.skin_rgb, hand.arm.sleeve_rgb, hand.arm.sleeve_rgb],

@@ -2,6 +2,7 @@
 
 import cv2
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.hand_conventions import JOINT_PARENTS
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import RIGHT
@@ -127,7 +128,7 @@ def test_capsule_across_the_view_has_analytic_depth() -> None:
     distance, radius = 0.5, 0.02
     assert len(caps.build_capsule_set([]).radii) == 0
     capsules = caps.CapsuleSet(np.array([[-0.1, 0.0, distance]]), np.array([[0.1, 0.0, distance]]),
-                               np.array([radius]), np.array([True]), np.array([True]),
+                               np.array([[radius, radius]]), np.array([True]), np.array([True]),
                                np.array([RIGHT]))
     rx = ((np.arange(WIDTH) - K[0, 2]) / K[0, 0])[None, :]
     ry = ((np.arange(HEIGHT) - K[1, 2]) / K[1, 1])[:, None]
@@ -138,6 +139,51 @@ def test_capsule_across_the_view_has_analytic_depth() -> None:
     assert centre[WIDTH // 2] == pytest.approx(distance - radius, abs=1e-9)
     assert centre[WIDTH // 2 + 20] == pytest.approx(distance - radius, abs=1e-9)
     assert np.isnan(depth[0, 0])  # a ray far above the capsule misses
+
+
+def _round_cone_distance(points: np.ndarray, start: np.ndarray, end: np.ndarray,
+                         radii: tuple[float, float]) -> np.ndarray:
+    """Signed distance (N,) of points (N, 3) to a round cone, by brute force.
+
+    The round cone is the union of the spheres along its segment, radius interpolated linearly
+    (the convex hull of the end spheres); sampled densely along the segment.
+    """
+    along = np.linspace(0.0, 1.0, 4001)
+    centres = start + along[:, None] * (end - start)
+    sphere_radii = radii[0] + along * (radii[1] - radii[0])
+    gaps = np.linalg.norm(points[:, None] - centres[None], axis=2) - sphere_radii[None]
+    return gaps.min(axis=1)
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_round_cone_hits_and_normals_match_its_distance_function(seed: int) -> None:
+    rng = np.random.default_rng(seed)
+    start = np.array([rng.uniform(-0.04, 0.04), rng.uniform(-0.04, 0.04), rng.uniform(0.3, 0.5)])
+    end = start + rng.normal(scale=0.04, size=3)
+    radii = tuple(rng.uniform(0.005, 0.03, size=2))
+    capsules = caps.CapsuleSet(start[None], end[None], np.array([radii]), np.array([True]),
+                               np.array([True]), np.array([RIGHT]))
+    rx = np.linspace(-0.2, 0.2, 40)[None, :]
+    ry = np.linspace(-0.15, 0.15, 30)[:, None]
+    depth = caps.ray_capsule_depth(rx, ry, capsules, 0)
+    rays = np.stack(np.broadcast_arrays(rx, ry, np.ones_like(depth)), axis=-1)
+    hit = np.isfinite(depth)
+    assert 20 < hit.sum() < hit.size
+    points = rays[hit] * depth[hit][:, None]
+    np.testing.assert_allclose(_round_cone_distance(points, start, end, radii), 0.0, atol=1e-6)
+    # The first hit: nothing of the cone lies on the ray before it, and missed rays miss it.
+    before = rays[hit] * (depth[hit] - 1e-4)[:, None]
+    assert np.all(_round_cone_distance(before, start, end, radii) > 0.0)
+    for t in np.linspace(0.25, 0.6, 36):
+        assert np.all(_round_cone_distance(rays[~hit] * t, start, end, radii) > -1e-4)
+    # Normals: the distance function's gradient.
+    normals = caps.surface_normals(points, capsules, np.zeros(len(points), int))
+    step = 1e-6
+    gradient = np.stack([_round_cone_distance(points + step * axis, start, end, radii)
+                         - _round_cone_distance(points - step * axis, start, end, radii)
+                         for axis in np.eye(3)], axis=1)
+    gradient /= np.linalg.norm(gradient, axis=1, keepdims=True)
+    assert np.einsum('ij,ij->i', normals, gradient).min() > np.cos(np.radians(0.5))
 
 
 def test_hand_behind_the_table_is_masked_out_and_in_front_is_not() -> None:
@@ -282,9 +328,16 @@ def test_bad_inputs_raise_clear_errors(room: Scene) -> None:
 
 def test_hand_capsules_cover_bones_knuckles_thenar_and_palm_rim() -> None:
     hand = _flat_hand(RIGHT, [0.0, 0.0, 0.5])
-    starts, ends, radii = caps.hand_capsules(hand.joints_world, hand.radii, RIGHT)
+    joint_radii = caps.joint_radii(np.zeros(10))
+    starts, ends, radii = caps.hand_capsules(hand.joints_world, joint_radii, RIGHT)
     assert len(starts) == 15 + 4 + 1 + 7  # finger bones, knuckles, thenar, palm rim
-    np.testing.assert_array_equal(ends[:15], hand.joints_world[list(caps.BONE_CHILDREN)])
+    children = list(caps.BONE_CHILDREN)
+    np.testing.assert_array_equal(ends[:15], hand.joints_world[children])
+    # Bones taper from joint to joint: each ends on its joint's sphere, where the next begins.
+    np.testing.assert_array_equal(radii[:15, 1], joint_radii[children])
+    parents = [JOINT_PARENTS[child] for child in children]
+    np.testing.assert_array_equal(radii[:15, 0], joint_radii[parents])
+    assert np.all(radii[:15, 0] > radii[:15, 1])
     capsule_set = caps.build_capsule_set([(hand.joints_world, hand.radii, RIGHT)])
     # Each distinct sphere is intersected once: fewer caps than 2 per capsule.
     assert capsule_set.start_caps.sum() + capsule_set.end_caps.sum() < 2 * len(starts)
