@@ -2,12 +2,14 @@
 
     python benchmarks/synth_speed.py [--frames 200] [--width 518 --height 378] [--json]
 
-Pins the process to one CPU core (and one thread in torch and OpenCV), generates a sequence three
-ways (render only; render + raw-image MCAP bag; render + JPEG MCAP bag, zstd) and prints
-frames/s for each beside the issue's 10 frames/s target.
+Pins the process to one CPU core (and one thread in torch and OpenCV), generates a sequence four
+ways (render only; render only with still images, ``exposure_s: 0``, for the motion blur's cost;
+render + raw-image MCAP bag; render + JPEG MCAP bag, zstd) and prints frames/s for each beside
+the issue's 10 frames/s target.
 """
 
 import argparse
+from dataclasses import replace
 import json
 import os
 from pathlib import Path
@@ -62,6 +64,7 @@ def main() -> None:
     _time_run(config, 5, None)  # warm-up (imports, allocations)
     results = {
         'render_fps': _time_run(config, args.frames, None),
+        'render_still_fps': _time_run(replace(config, exposure_s=0.0), args.frames, None),
         'render_bag_raw_fps': _time_run(config, args.frames, BagOptions()),
         'render_bag_jpeg_zstd_fps': _time_run(
             config, args.frames, BagOptions(compress=True, image_codec='jpeg')),

@@ -150,3 +150,16 @@ def invert_transform(transform: np.ndarray) -> np.ndarray:
     t = np.asarray(transform, dtype=np.float64)
     rot_t = np.swapaxes(t[..., :3, :3], -1, -2)
     return make_transform(rot_t, -np.einsum('...ij,...j->...i', rot_t, t[..., :3, 3]))
+
+
+def interpolate_transform(start: np.ndarray, end: np.ndarray, fraction: float) -> np.ndarray:
+    """Rigid 4x4 transform ``fraction`` of the way from ``start`` to ``end``.
+
+    The rotation turns about the relative rotation's axis (geodesic), the translation moves on
+    the straight line; a fraction outside [0, 1] extrapolates.
+    """
+    a = np.asarray(start, dtype=np.float64)
+    b = np.asarray(end, dtype=np.float64)
+    relative = Rotation.from_matrix(a[:3, :3].T @ b[:3, :3]).as_rotvec()
+    rotation = a[:3, :3] @ Rotation.from_rotvec(fraction * relative).as_matrix()
+    return make_transform(rotation, a[:3, 3] + fraction * (b[:3, 3] - a[:3, 3]))

@@ -23,6 +23,8 @@ import numpy as np
 
 #: MCP joints across the palm (index, middle, ring, pinky).
 PALM_MCPS: Final = (5, 9, 13, 17)
+#: Joints the palm slab moves with: the wrist and the MCPs.
+PALM_JOINTS: Final = (0, *PALM_MCPS)
 #: Child joints of the bones drawn as capsules (every bone but the five from the wrist), in
 #: bone order; a hand's first capsules are these bones.
 BONE_CHILDREN: Final = tuple(child for child, parent in enumerate(JOINT_PARENTS) if parent > 0)
@@ -177,6 +179,25 @@ def hand_capsules(joints: np.ndarray, radii: np.ndarray,
     ends += list(np.roll(rim, -1, axis=0))
     caps_r += [(half, half)] * len(rim)
     return np.array(starts), np.array(ends), np.array(caps_r)
+
+
+def part_joint_weights(count: int) -> np.ndarray:
+    """Weights (count, 21) of the joints each of a hand's ``count`` capsules moves with.
+
+    In ``hand_capsules`` order: a bone moves with its two joints, a knuckle with its MCP, the
+    thenar with the wrist and the thumb's first two joints, the palm rim with the wrist and the
+    MCPs. Rows sum to one.
+    """
+    weights = np.zeros((count, len(JOINT_PARENTS)))
+    for row, child in enumerate(BONE_CHILDREN):
+        weights[row, [JOINT_PARENTS[child], child]] = 0.5
+    knuckles = len(BONE_CHILDREN)
+    for row, mcp in enumerate(PALM_MCPS, start=knuckles):
+        weights[row, mcp] = 1.0
+    thenar = knuckles + len(PALM_MCPS)
+    weights[thenar, [0, 1, 2]] = 1.0 / 3.0
+    weights[thenar + 1:, list(PALM_JOINTS)] = 1.0 / len(PALM_JOINTS)
+    return weights
 
 
 def build_palm_set(hands: list[tuple[np.ndarray, np.ndarray, int]]) -> PalmSet:

@@ -68,6 +68,14 @@ SKIN_WRAP: Final = 0.35
 #: Specular sheen of skin (fraction of the directional light) and its Blinn-Phong exponent.
 SKIN_SPECULAR: Final = 0.06
 SKIN_SHININESS: Final = 12.0
+#: How much of the wrist's motion the bare forearm, the sleeved forearm and the upper arm
+#: follow during the exposure (the elbow and the shoulder move less).
+ARM_WRIST_MOTION: Final = (1.0, 0.5, 0.25)
+#: Motion blur: most samples of the exposure per image, the least motion (px) blurred, and the
+#: block side (px) at whose centres the scene's motion is computed (then interpolated).
+EXPOSURE_SAMPLES: Final = 8
+MIN_BLUR_PX: Final = 0.5
+FLOW_STEP: Final = 4
 #: Palms are lighter and pinker than the back of the hand: blend towards this colour.
 PALM_RGB: Final = (242, 196, 180)
 PALM_BLEND: Final = 0.3
@@ -133,8 +141,6 @@ class RenderOptions:
 
     Attributes:
         noise_sigma: std of additive Gaussian image noise (uint8 units); 0 disables it.
-        motion_blur_px: length of a linear motion blur (pixels); below 1 disables it.
-        motion_blur_angle_rad: direction of the blur in the image (0 = along +u).
         noise_seed: seed of the noise (draw it per frame from the sequence's generator).
         jpeg_quality: JPEG compression quality (1-100) applied last; 0 disables it.
         near_m: near clipping plane (m).
@@ -142,21 +148,43 @@ class RenderOptions:
     """
 
     noise_sigma: float = 2.0
-    motion_blur_px: float = 0.0
-    motion_blur_angle_rad: float = 0.0
     noise_seed: int = 0
     jpeg_quality: int = 0
     near_m: float = 0.05
 
     def __post_init__(self) -> None:
-        if self.noise_sigma < 0 or self.motion_blur_px < 0:
-            raise InputError(f'RenderOptions: noise_sigma={self.noise_sigma} and motion_blur_px='
-                             f'{self.motion_blur_px} must be >= 0')
+        if self.noise_sigma < 0:
+            raise InputError(f'RenderOptions.noise_sigma must be >= 0, got {self.noise_sigma}')
         if not 0 <= self.jpeg_quality <= 100:
             raise InputError(
                 f'RenderOptions.jpeg_quality must be 0 (off) to 100, got {self.jpeg_quality}')
         if self.near_m <= 0:
             raise InputError(f'RenderOptions.near_m must be > 0 metres, got {self.near_m}')
+
+
+@dataclass(frozen=True)
+class Exposure:
+    """Where the camera and the hands are when the shutter opens and when it closes.
+
+    The image is the average over the exposure, the motion linear in between; the frame's own
+    pose and joints (``render_frame``'s) are those of its middle, and its depth and masks.
+
+    Attributes:
+        T_world_cam: (2, 4, 4) camera-to-world poses at the opening and at the closing.
+        joints_world: (2, H, 21, 3) joints of the H hands (``render_frame``'s order) at the
+            opening and at the closing (world frame, m).
+
+    """
+
+    T_world_cam: np.ndarray
+    joints_world: np.ndarray
+
+    def __post_init__(self) -> None:
+        as_array(self.T_world_cam, 'Exposure.T_world_cam', (2, 4, 4))
+        joints = np.asarray(self.joints_world, np.float64)
+        if joints.ndim != 4 or joints.shape[0] != 2 or joints.shape[2:] != (NUM_JOINTS, 3):
+            raise InputError(f'Exposure.joints_world: expected shape (2, H, {NUM_JOINTS}, 3), '
+                             f'got {joints.shape}')
 
 
 @dataclass
@@ -324,6 +352,9 @@ class _Bodies:
             for arms).
         nail_normals: (N + H, 3) camera-frame unit normal of the nail on a fingertip capsule
             (zeros for the other owners).
+        hand_index: (N + H,) index (in ``render_frame``'s ``hands``) of the hand each owner
+            moves with (its own, or the hand at the end of the arm).
+        joint_weights: (N + H, 21) weights of that hand's joints each owner moves with.
 
     """
 
@@ -334,6 +365,8 @@ class _Bodies:
     albedo: np.ndarray
     palm_normals: np.ndarray
     nail_normals: np.ndarray
+    hand_index: np.ndarray
+    joint_weights: np.ndarray
 
 
 def _palm_normal(joints: np.ndarray, side: int) -> np.ndarray:
@@ -371,8 +404,12 @@ def _bodies(frame: _Frame, hands: Sequence[HandGeometry]) -> _Bodies:
     albedo: list[np.ndarray] = []
     palm_rows: list[np.ndarray] = []
     nails: list[np.ndarray] = []
-    for j, hand in zip(joints, hands):
+    movers: list[np.ndarray] = []
+    weights: list[np.ndarray] = []
+    for index, (j, hand) in enumerate(zip(joints, hands)):
         count = int(np.sum(hand_set.sides == hand.side))
+        movers.append(np.full(count, index))
+        weights.append(caps.part_joint_weights(count))
         palm = _palm_normal(j, hand.side)
         albedo.append(np.tile(np.asarray(hand.skin_rgb, np.float64), (count, 1)))
         palm_rows.append(np.tile(palm, (count, 1)))
@@ -380,9 +417,14 @@ def _bodies(frame: _Frame, hands: Sequence[HandGeometry]) -> _Bodies:
         # Bone capsules come first (``caps.BONE_CHILDREN``).
         nail[[caps.BONE_CHILDREN.index(tip) for tip in TIP_JOINTS]] = _nail_normals(j, palm)
         nails.append(nail)
-    arms = [hand for hand in hands if hand.arm is not None]
     parts = [hand_set]
-    for hand in arms:
+    for index, hand in enumerate(hands):
+        if hand.arm is None:
+            continue
+        movers.append(np.full(3, index))
+        arm_weights = np.zeros((3, NUM_JOINTS))
+        arm_weights[:, 0] = ARM_WRIST_MOTION
+        weights.append(arm_weights)
         points = to_cam(hand.arm.points_world)
         radii = np.repeat(np.asarray(hand.arm.radii, float)[:, None], 2, axis=1)
         parts.append(caps.CapsuleSet(points[:3], points[1:], radii,
@@ -395,16 +437,21 @@ def _bodies(frame: _Frame, hands: Sequence[HandGeometry]) -> _Bodies:
     capsules = caps.CapsuleSet(*(np.concatenate([getattr(part, name) for part in parts])
                                  for name in ('starts', 'ends', 'radii', 'start_caps',
                                               'end_caps', 'sides')))
-    for j, hand in zip(joints, hands):
+    for index, (j, hand) in enumerate(zip(joints, hands)):
         albedo.append(np.asarray(hand.skin_rgb, np.float64)[None])
         palm_rows.append(_palm_normal(j, hand.side)[None])
         nails.append(np.zeros((1, 3)))
+        movers.append(np.array([index]))
+        palm_weights = np.zeros((1, NUM_JOINTS))
+        palm_weights[0, list(caps.PALM_JOINTS)] = 1.0 / len(caps.PALM_JOINTS)
+        weights.append(palm_weights)
     num_hand = len(hand_set.radii)
     sides = np.concatenate([hand_set.sides, np.full(len(capsules.radii) - num_hand, -1),
                             palms.sides])
-    stack = (lambda rows: np.concatenate(rows) if rows else np.zeros((0, 3)))
+    stack = (lambda rows, width=3: np.concatenate(rows) if rows else np.zeros((0, width)))
     return _Bodies(capsules, palms, num_hand, sides, stack(albedo), stack(palm_rows),
-                   stack(nails))
+                   stack(nails), np.concatenate(movers) if movers else np.zeros(0, int),
+                   stack(weights, NUM_JOINTS))
 
 
 def _local_mean(values: np.ndarray, rows: np.ndarray, cols: np.ndarray,
@@ -501,6 +548,142 @@ def _antialias(rgb: np.ndarray, covered: np.ndarray, rows: np.ndarray, cols: np.
     rgb[y0:y1, x0:x1][band] = blurred[band]
 
 
+def _shifted_pixels(k: np.ndarray, u: np.ndarray, v: np.ndarray, depth: np.ndarray,
+                    rot: np.ndarray, shift: np.ndarray,
+                    travel: np.ndarray | None = None) -> np.ndarray:
+    """Offsets (..., 2) from pixels (u, v) to where their points land in another camera.
+
+    The points lie at ``depth`` along the pixels' rays in this camera; the other camera sees a
+    point ``p`` at ``rot @ p + shift``, after it moved by ``travel`` ((..., 3), this camera's
+    axes; None: static).
+    """
+    ray_x = (u - k[0, 2]) / k[0, 0]
+    ray_y = (v - k[1, 2]) / k[1, 1]
+    moved = [depth * (rot[i, 0] * ray_x + rot[i, 1] * ray_y + rot[i, 2]) + shift[i]
+             for i in range(3)]
+    if travel is not None:
+        moved = [axis + travel[..., i] for i, axis in enumerate(moved)]
+    z = np.maximum(moved[2], PARALLEL_EPS)
+    return np.stack([k[0, 0] * moved[0] / z + k[0, 2] - u,
+                     k[1, 1] * moved[1] / z + k[1, 2] - v], axis=-1)
+
+
+def _expose(frame: _Frame, bodies: _Bodies, owner: np.ndarray, hands: Sequence[HandGeometry],
+            exposure: Exposure) -> None:
+    """Blur the image with the motion of the camera and the hands during the exposure.
+
+    Each pixel's surface point moves (with its hand's joints, or with the scene) from where it
+    is at the shutter's opening to where it is at its closing, and the camera moves too; the
+    pixel averages the image along that path. Hands and arms also smear over the pixels they
+    sweep: a pixel shows them for the share of the exposure they cover it (``_moving_layer``).
+    """
+    height, width = owner.shape
+    depth = np.full((height, width), 1e3, np.float32)  # empty pixels: far away
+    np.divide(1.0, frame.inv_depth, out=depth, where=frame.inv_depth > 0)
+    rot_wc, origin = frame.rot_cw.T, -frame.rot_cw.T @ frame.t_cw
+    # The scene's paths vary smoothly: computed at the centre of every FLOW_STEP-pixel block and
+    # interpolated; the hands' and arms' pixels exactly.
+    step = FLOW_STEP
+    blocks_y, blocks_x = -(-height // step), -(-width // step)
+    centre_x = np.arange(blocks_x) * step + (step - 1) / 2.0
+    centre_y = np.arange(blocks_y) * step + (step - 1) / 2.0
+    coarse = np.empty((blocks_y, blocks_x, 4), np.float32)
+    sampled = depth[np.minimum(centre_y.astype(int), height - 1)][
+        :, np.minimum(centre_x.astype(int), width - 1)]
+    moving = owner != NO_CAPSULE
+    rows, cols = np.nonzero(moving)
+    exact = np.empty((rows.size, 4), np.float32)
+    if rows.size:
+        mid = np.array([np.asarray(hand.joints_world, np.float64) for hand in hands])
+        ids = owner[rows, cols]
+    for end, (T_world_cam, joints) in enumerate(zip(exposure.T_world_cam, exposure.joints_world)):
+        pose = np.asarray(T_world_cam, np.float64)
+        rot = pose[:3, :3].T @ rot_wc  # this end's camera <- the frame's camera
+        shift = pose[:3, :3].T @ (origin - pose[:3, 3])
+        coarse[..., 2 * end:2 * end + 2] = _shifted_pixels(
+            frame.k, centre_x[None, :], centre_y[:, None], sampled, rot, shift)
+        if rows.size:
+            part = np.einsum('pj,pjc->pc', bodies.joint_weights,
+                             (np.asarray(joints, np.float64) - mid)[bodies.hand_index])
+            travel = part[ids] @ pose[:3, :3]  # world motion, in this camera
+            exact[:, 2 * end:2 * end + 2] = _shifted_pixels(
+                frame.k, cols, rows, depth[rows, cols], rot, shift, travel)
+    offsets = cv2.resize(coarse, (blocks_x * step, blocks_y * step),
+                         interpolation=cv2.INTER_LINEAR)[:height, :width]
+    offsets[rows, cols] = exact
+    path = offsets[..., 2:] - offsets[..., :2]
+    longest = float(np.sqrt((path * path).sum(axis=-1).max()))
+    if longest < MIN_BLUR_PX:
+        return
+    samples = int(min(EXPOSURE_SAMPLES, np.ceil(longest) + 1))
+    pixels = np.stack(np.meshgrid(np.arange(width, dtype=np.float32),
+                                  np.arange(height, dtype=np.float32)), axis=-1)
+    layer = _moving_layer(moving, offsets, pixels) if rows.size else None
+    grid = pixels - offsets[..., :2]
+    total = np.zeros(frame.rgb.shape, np.float32)
+    for fraction in np.linspace(0.0, 1.0, samples):
+        where = cv2.scaleAdd(path, -fraction, grid)
+        image = cv2.remap(frame.rgb, where[..., 0], where[..., 1], cv2.INTER_LINEAR,
+                          borderMode=cv2.BORDER_REPLICATE)
+        cv2.accumulate(image, total)
+        if layer is not None:
+            y0, y1, x0, x1 = layer.region
+            where = cv2.scaleAdd(layer.travel, -fraction, layer.start)
+            alpha = cv2.remap(layer.cover, where[..., 0], where[..., 1], cv2.INTER_LINEAR,
+                              borderMode=cv2.BORDER_CONSTANT)
+            body = cv2.remap(frame.rgb, where[..., 0], where[..., 1], cv2.INTER_LINEAR,
+                             borderMode=cv2.BORDER_REPLICATE)
+            # Where the moving layer covers the pixel it shows the layer instead.
+            total[y0:y1, x0:x1] += alpha[..., None] * (np.float32(body) - image[y0:y1, x0:x1])
+    frame.rgb[:] = np.clip(total * np.float32(1.0 / samples) + 0.5, 0, 255).astype(np.uint8)
+
+
+@dataclass(frozen=True)
+class _Layer:
+    """The hands and arms as a layer sweeping over the image during the exposure.
+
+    Attributes:
+        region: (y0, y1, x0, x1) pixels they can reach.
+        start: (h, w, 2) where each pixel of the region looks into the layer at the opening.
+        travel: (h, w, 2) how far that moves until the closing (px).
+        cover: (H, W) float32, 1 on the layer's pixels in the frame's image.
+
+    """
+
+    region: tuple[int, int, int, int]
+    start: np.ndarray
+    travel: np.ndarray
+    cover: np.ndarray
+
+
+def _moving_layer(moving: np.ndarray, offsets: np.ndarray, pixels: np.ndarray) -> _Layer | None:
+    """Build the layer of the moving pixels; None when none moves a pixel or more.
+
+    Moving pixels follow their own paths, the others within reach the mean path of the moving
+    pixels around them (so the layer smears over them along its motion).
+    """
+    rows, cols = np.nonzero(moving)
+    travel = offsets[rows, cols, 2:] - offsets[rows, cols, :2]
+    reach = int(np.ceil(float(np.sqrt((travel * travel).sum(axis=-1).max())) / 2.0))
+    if reach < 1:
+        return None
+    height, width = moving.shape
+    y0, y1 = max(int(rows.min()) - reach, 0), min(int(rows.max()) + reach + 1, height)
+    x0, x1 = max(int(cols.min()) - reach, 0), min(int(cols.max()) + reach + 1, width)
+    inside = moving[y0:y1, x0:x1]
+    cover = moving.astype(np.float32)
+    size = 2 * reach + 1
+    own = offsets[y0:y1, x0:x1]
+    weight = cv2.blur(cover[y0:y1, x0:x1], (size, size), borderType=cv2.BORDER_CONSTANT)
+    mean = cv2.blur(own * cover[y0:y1, x0:x1, None], (size, size),
+                    borderType=cv2.BORDER_CONSTANT)
+    mean /= np.maximum(weight, np.float32(1e-6))[..., None]
+    carried = (~inside & (weight > 0.5 / size ** 2))[..., None]  # a moving pixel within reach
+    paths = np.where(carried, mean, own)
+    return _Layer((y0, y1, x0, x1), pixels[y0:y1, x0:x1] - paths[..., :2],
+                  paths[..., 2:] - paths[..., :2], cover)
+
+
 def _hand_masks(bodies: _Bodies, owner: np.ndarray) -> np.ndarray:
     """Visible pixels (2, H, W) bool of the left and right hands (arms excluded)."""
     pixel_side = np.append(bodies.hand_sides, -1)[owner]
@@ -508,19 +691,7 @@ def _hand_masks(bodies: _Bodies, owner: np.ndarray) -> np.ndarray:
 
 
 def _degrade(rgb: np.ndarray, options: RenderOptions) -> np.ndarray:
-    """Apply motion blur, Gaussian noise and JPEG compression to a uint8 image."""
-    if options.motion_blur_px >= 1.0:
-        size = int(np.ceil(options.motion_blur_px)) | 1
-        kernel = np.zeros((size, size), np.float32)
-        half = 0.5 * (options.motion_blur_px - 1.0)
-        centre = (size - 1) / 2.0
-        dx = half * np.cos(options.motion_blur_angle_rad)
-        dy = half * np.sin(options.motion_blur_angle_rad)
-        scale = 1 << SUBPIXEL_BITS
-        p0 = (int(round((centre - dx) * scale)), int(round((centre - dy) * scale)))
-        p1 = (int(round((centre + dx) * scale)), int(round((centre + dy) * scale)))
-        cv2.line(kernel, p0, p1, 1.0, 1, cv2.LINE_AA, SUBPIXEL_BITS)
-        rgb = cv2.filter2D(rgb, -1, kernel / kernel.sum(), borderType=cv2.BORDER_REPLICATE)
+    """Apply Gaussian noise and JPEG compression to a uint8 image."""
     if options.noise_sigma > 0:
         # Gaussian noise by inverse-CDF lookup of random bytes (256 quantiles, rounded to
         # integers), several times faster than drawing normal floats.
@@ -537,7 +708,8 @@ def _degrade(rgb: np.ndarray, options: RenderOptions) -> np.ndarray:
 
 
 def render_frame(scene: Scene, K: np.ndarray, T_world_cam: np.ndarray, width: int, height: int,
-                 hands: Sequence[HandGeometry], options: RenderOptions) -> RenderOutput:
+                 hands: Sequence[HandGeometry], options: RenderOptions,
+                 exposure: Exposure | None = None) -> RenderOutput:
     """Render one frame of a scene with hands.
 
     Args:
@@ -547,7 +719,9 @@ def render_frame(scene: Scene, K: np.ndarray, T_world_cam: np.ndarray, width: in
         width: image width (pixels).
         height: image height (pixels).
         hands: at most one hand per side.
-        options: noise, blur and clipping.
+        options: noise, JPEG and clipping.
+        exposure: the camera's and the hands' motion while the shutter is open (motion blur);
+            None for a still image.
 
     Returns:
         RGB image, z depth (+inf where empty) and visible-hand masks (left, right).
@@ -570,6 +744,11 @@ def render_frame(scene: Scene, K: np.ndarray, T_world_cam: np.ndarray, width: in
     bodies = _bodies(frame, hands)
     owner = _draw_bodies(frame, bodies.capsules, bodies.palms)
     _shade_bodies(frame, bodies, owner, scene.lighting)
+    if exposure is not None:
+        if np.shape(exposure.joints_world)[1] != len(hands):
+            raise InputError(f'exposure: joints of {np.shape(exposure.joints_world)[1]} hands '
+                             f'for {len(hands)} hands')
+        _expose(frame, bodies, owner, hands, exposure)
     depth = np.full(frame.inv_depth.shape, np.inf, np.float32)
     np.divide(1.0, frame.inv_depth, out=depth, where=frame.inv_depth > 0)
     return RenderOutput(_degrade(frame.rgb, options), depth, _hand_masks(bodies, owner))

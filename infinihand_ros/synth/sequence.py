@@ -26,6 +26,7 @@ from infinihand_ros.synth import arms
 from infinihand_ros.synth import camera_motion
 from infinihand_ros.synth import hand_motion
 from infinihand_ros.synth.render import ArmGeometry
+from infinihand_ros.synth.render import Exposure
 from infinihand_ros.synth.render import HandGeometry
 from infinihand_ros.synth.render import render_frame
 from infinihand_ros.synth.render import RenderOptions
@@ -50,7 +51,8 @@ class SynthConfig:
         height: image height (px).
         hands: which hands appear: 'both', 'left' or 'right'.
         noise_sigma: image noise standard deviation (uint8 units).
-        motion_blur_px: length of the motion blur (px); 0 disables it.
+        exposure_s: shutter time (s), centred on the frame's time: each image averages the
+            camera's and the hands' motion over it (motion blur); 0: still images.
         min_visible_px: a hand with fewer visible pixels is marked not visible.
         jpeg_quality: JPEG compression of the rendered images (1-100, as a camera's); 0: none.
 
@@ -61,7 +63,7 @@ class SynthConfig:
     height: int = 378
     hands: str = 'both'
     noise_sigma: float = 2.0
-    motion_blur_px: float = 0.0
+    exposure_s: float = 0.01
     min_visible_px: int = 40
     jpeg_quality: int = 90
 
@@ -75,10 +77,12 @@ class SynthConfig:
             raise InputError(f'hands must be one of {sorted(HAND_CHOICES)}, got {self.hands!r}')
         if not 0 <= self.jpeg_quality <= 100:
             raise InputError(f'jpeg_quality must be 0 (none) to 100, got {self.jpeg_quality}')
-        if self.noise_sigma < 0 or self.motion_blur_px < 0 or self.min_visible_px < 1:
-            raise InputError(
-                'noise_sigma and motion_blur_px must be >= 0 and min_visible_px >= 1, got '
-                f'{self.noise_sigma}, {self.motion_blur_px}, {self.min_visible_px}')
+        if self.noise_sigma < 0 or self.min_visible_px < 1:
+            raise InputError('noise_sigma must be >= 0 and min_visible_px >= 1, got '
+                             f'{self.noise_sigma}, {self.min_visible_px}')
+        if not 0.0 <= self.exposure_s <= 1.0 / self.fps:
+            raise InputError(f'exposure_s must be within [0, 1 / fps = {1.0 / self.fps:g}] s, '
+                             f'got {self.exposure_s}')
 
 
 @dataclass(frozen=True)
@@ -165,7 +169,6 @@ class SyntheticSequence:
             config.fps)
         self.T_world_scene = geometry.invert_transform(self.T_scene_cams[0])
         self._options = RenderOptions(noise_sigma=config.noise_sigma,
-                                      motion_blur_px=config.motion_blur_px,
                                       jpeg_quality=config.jpeg_quality)
 
     @staticmethod
@@ -206,7 +209,7 @@ class SyntheticSequence:
         noise_seed = int(np.random.SeedSequence([self.seed, index]).generate_state(1)[0])
         out = render_frame(self.scene, self.intrinsics.matrix(), T_scene_cam, self.config.width,
                            self.config.height, geometries,
-                           replace(self._options, noise_seed=noise_seed))
+                           replace(self._options, noise_seed=noise_seed), self._exposure(index))
         pose = self.camera_pose(index)
         hands = tuple(
             self._hand_truth(track, joints[index], index, pose, out.hand_masks[track.side])
@@ -214,6 +217,28 @@ class SyntheticSequence:
         stamp = START_TIME_NS + int(round(index * 1e9 / self.config.fps))
         return SynthFrame(index=index, timestamp_ns=stamp, rgb=out.rgb, depth=out.depth,
                           intrinsics=self.intrinsics, camera_pose=pose, hands=hands)
+
+    def _exposure(self, index: int) -> Exposure | None:
+        """Return the camera poses and joints (scene frame) at frame ``index``'s shutter.
+
+        It opens and closes a fraction of the way to the previous and to the next frame
+        (extrapolated at the sequence's ends); None for still images.
+        """
+        if self.config.exposure_s <= 0.0:
+            return None
+        half = 0.5 * self.config.exposure_s * self.config.fps  # of a frame interval
+        poses, joints = [], []
+        for step in (-1, 1):
+            other, fraction = index + step, half
+            if not 0 <= other < self.num_frames:
+                other, fraction = index - step, -half
+            if not 0 <= other < self.num_frames:
+                other, fraction = index, 0.0
+            poses.append(geometry.interpolate_transform(self.T_scene_cams[index],
+                                                        self.T_scene_cams[other], fraction))
+            joints.append([j[index] + fraction * (j[other] - j[index])
+                           for j in self.joints_scene])
+        return Exposure(np.array(poses), np.array(joints))
 
     def _hand_truth(self, track: hand_motion.HandTrack, joints_scene: np.ndarray, index: int,
                     pose: CameraPose, mask: np.ndarray) -> HandTruth:

@@ -72,3 +72,19 @@ def test_transforms_invert(rng: np.random.Generator) -> None:
     there = geometry.transform_points(transform, points)
     np.testing.assert_allclose(
         geometry.transform_points(geometry.invert_transform(transform), there), points, atol=1e-12)
+
+
+def test_interpolated_transform_turns_and_moves_the_fraction_asked(
+        rng: np.random.Generator) -> None:
+    start = geometry.make_transform(geometry.axis_angle_to_matrix(rng.normal(size=3)),
+                                    rng.normal(size=3))
+    turn = geometry.axis_angle_to_matrix(np.array([0.0, 0.4, 0.0]))
+    end = geometry.make_transform(start[:3, :3] @ turn, start[:3, 3] + [0.2, 0.0, -0.1])
+    np.testing.assert_allclose(geometry.interpolate_transform(start, end, 0.0), start, atol=1e-12)
+    np.testing.assert_allclose(geometry.interpolate_transform(start, end, 1.0), end, atol=1e-12)
+    for fraction in (0.25, -0.5):  # a negative fraction extrapolates backwards
+        between = geometry.interpolate_transform(start, end, fraction)
+        assert geometry.rotation_angle_deg(start[:3, :3], between[:3, :3]) == pytest.approx(
+            abs(fraction) * np.degrees(0.4))
+        np.testing.assert_allclose(between[:3, 3], start[:3, 3] + fraction * np.array(
+            [0.2, 0.0, -0.1]))

@@ -1,6 +1,6 @@
 """Renderer: analytic depths, z-buffer occlusion between the scene and the hands, determinism."""
 
-import cv2
+from infinihand_ros.core import geometry
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import JOINT_PARENTS
 from infinihand_ros.core.hand_conventions import LEFT
@@ -10,6 +10,7 @@ from infinihand_ros.mano import capsules as caps
 from infinihand_ros.synth import render
 from infinihand_ros.synth.camera_motion import sample_intrinsics
 from infinihand_ros.synth.render import ArmGeometry
+from infinihand_ros.synth.render import Exposure
 from infinihand_ros.synth.render import HandGeometry
 from infinihand_ros.synth.render import render_frame
 from infinihand_ros.synth.render import RenderOptions
@@ -293,7 +294,7 @@ def test_render_is_deterministic_and_the_noise_follows_its_seed(room: Scene) -> 
                   != render_frame(room, K, pose, WIDTH, HEIGHT, hands, CLEAN).rgb)
 
 
-def test_noise_has_the_requested_sigma_and_blur_smooths(room: Scene) -> None:
+def test_noise_has_the_requested_sigma(room: Scene) -> None:
     pose, _ = _room_view(room)
     clean = render_frame(room, K, pose, WIDTH, HEIGHT, [], CLEAN).rgb.astype(float)
     noisy = render_frame(room, K, pose, WIDTH, HEIGHT, [], RenderOptions(noise_sigma=4.0)).rgb
@@ -301,11 +302,72 @@ def test_noise_has_the_requested_sigma_and_blur_smooths(room: Scene) -> None:
     inside = (clean > 20) & (clean < 235)  # away from clipping
     assert diff[inside].std() == pytest.approx(4.0, rel=0.15)
     assert abs(diff[inside].mean()) < 0.2
-    blurred = render_frame(room, K, pose, WIDTH, HEIGHT, [],
-                           RenderOptions(noise_sigma=0.0, motion_blur_px=9.0)).rgb.astype(float)
-    laplacian = [np.abs(cv2.Laplacian(img[..., 1], cv2.CV_64F)).mean() for img in (clean, blurred)]
-    assert laplacian[1] < 0.7 * laplacian[0]
-    assert blurred.mean() == pytest.approx(clean.mean(), rel=0.02)
+
+
+def _yaw(pose: np.ndarray, angle_rad: float) -> np.ndarray:
+    """Turn a pose about its own camera y axis (the image's vertical) by ``angle_rad``."""
+    turn = np.eye(4)
+    turn[:3, :3] = geometry.axis_angle_to_matrix(np.array([0.0, angle_rad, 0.0]))
+    return pose @ turn
+
+
+def _still(pose: np.ndarray, hands: list[HandGeometry]) -> Exposure:
+    joints = np.array([hand.joints_world for hand in hands]).reshape(len(hands), NUM_JOINTS, 3)
+    return Exposure(np.stack([pose, pose]), np.stack([joints, joints]))
+
+
+def test_a_turning_camera_blurs_an_edge_by_its_motion_only_while_exposed() -> None:
+    texture = np.zeros((64, 64, 3), np.uint8)
+    texture[:, 32:] = 255
+    wall = TexturedQuad(np.array([-3.0, -3.0, 2.0]), np.array([6.0, 0.0, 0.0]),
+                        np.array([0.0, 6.0, 0.0]), texture, 'edge')
+    scene, pose = _scene(wall), np.eye(4)
+    still = render_frame(scene, K, pose, WIDTH, HEIGHT, [], CLEAN)
+    np.testing.assert_array_equal(
+        render_frame(scene, K, pose, WIDTH, HEIGHT, [], CLEAN, _still(pose, [])).rgb, still.rgb)
+    angle = 0.1  # the edge sweeps f * angle = 12 px while the shutter is open
+    turning = Exposure(np.stack([_yaw(pose, -angle / 2), _yaw(pose, angle / 2)]),
+                       np.zeros((2, 0, NUM_JOINTS, 3)))
+    blurred = render_frame(scene, K, pose, WIDTH, HEIGHT, [], CLEAN, turning)
+    np.testing.assert_array_equal(blurred.depth, still.depth)
+
+    def spread(rgb: np.ndarray) -> float:
+        """Variance (px^2) of where the centre row steps up (its derivative as a density)."""
+        step = np.diff(rgb[HEIGHT // 2, :, 1].astype(float))
+        where = np.arange(len(step))
+        mean = np.average(where, weights=step)
+        return float(np.average((where - mean) ** 2, weights=step))
+
+    # A sweep of length L adds L^2 / 12 to the variance (a box), (n + 1) / (n - 1) times that
+    # for the n samples of the exposure; 12 px need all EXPOSURE_SAMPLES.
+    samples = render.EXPOSURE_SAMPLES
+    sweep = np.sqrt(12.0 * (spread(blurred.rgb) - spread(still.rgb))
+                    * (samples - 1) / (samples + 1))
+    assert sweep == pytest.approx(K[0, 0] * angle, rel=0.1)
+    # Along the edge (vertically) nothing moves.
+    np.testing.assert_array_equal(blurred.rgb[HEIGHT // 2 - 20], blurred.rgb[HEIGHT // 2 + 20])
+
+
+def test_a_moving_hand_is_smeared_along_its_path_and_its_truth_stays_sharp() -> None:
+    scene = _scene(_wall(3.0))
+    hand = _blob_hand(RIGHT, [0.0, 0.0, 0.6], 0.05)
+    travel = np.array([0.06, 0.0, 0.0])  # 12 px at 0.6 m while the shutter is open
+    joints = np.stack([hand.joints_world - travel / 2, hand.joints_world + travel / 2])[:, None]
+    exposure = Exposure(np.stack([np.eye(4), np.eye(4)]), joints)
+    still = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [hand], CLEAN)
+    moving = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [hand], CLEAN, exposure)
+    np.testing.assert_array_equal(moving.depth, still.depth)
+    np.testing.assert_array_equal(moving.hand_masks, still.hand_masks)
+    changed = np.abs(moving.rgb.astype(int) - still.rgb.astype(int)).max(axis=-1) > 8
+    cols = np.flatnonzero(still.hand_masks[RIGHT].any(axis=0))
+    sweep = K[0, 0] * travel[0] / 0.6
+    # The hand spreads sideways over the wall, about half its sweep on each side; rows above
+    # and below it, and the wall beyond its reach, do not change.
+    spread = np.flatnonzero(changed[HEIGHT // 2])
+    assert spread.min() < cols.min() - sweep / 4 and spread.max() > cols.max() + sweep / 4
+    assert spread.min() > cols.min() - sweep and spread.max() < cols.max() + sweep
+    rows = np.flatnonzero(still.hand_masks[RIGHT].any(axis=1))
+    assert not changed[:rows.min() - 2].any() and not changed[rows.max() + 3:].any()
 
 
 def test_bad_inputs_raise_clear_errors(room: Scene) -> None:
@@ -322,7 +384,7 @@ def test_bad_inputs_raise_clear_errors(room: Scene) -> None:
         HandGeometry(LEFT, np.zeros((NUM_JOINTS, 3)), np.zeros(NUM_JOINTS), SKIN)
     with pytest.raises(InputError, match='side must be 0'):
         HandGeometry(2, np.zeros((NUM_JOINTS, 3)), np.ones(NUM_JOINTS), SKIN)
-    with pytest.raises(InputError, match='noise_sigma=-1'):
+    with pytest.raises(InputError, match='noise_sigma must be >= 0'):
         RenderOptions(noise_sigma=-1.0)
 
 

@@ -1,5 +1,7 @@
 """Ground-truth consistency of synthetic sequences (the generator's contract)."""
 
+from dataclasses import replace
+
 from infinihand_ros.core import geometry
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.mano.builtin import BuiltinHandModel
@@ -123,3 +125,19 @@ def test_one_hand_sequences_and_bad_settings() -> None:
         SynthConfig(jpeg_quality=-1)
     with pytest.raises(InputError, match='frames must be >= 1'):
         SyntheticSequence(SMALL, 1, 0)
+
+
+def test_exposure_blurs_the_image_only_and_is_bounded_by_the_frame_interval() -> None:
+    still = SyntheticSequence(replace(SMALL, exposure_s=0.0), seed=7, num_frames=12)
+    exposed = SyntheticSequence(replace(SMALL, exposure_s=0.02), seed=7, num_frames=12)
+    changed = 0
+    for index in (0, 6, 11):  # the ends extrapolate the motion
+        a, b = still.frame(index), exposed.frame(index)
+        np.testing.assert_array_equal(a.depth, b.depth)
+        for hand_a, hand_b in zip(a.hands, b.hands):
+            np.testing.assert_array_equal(hand_a.mask, hand_b.mask)
+            np.testing.assert_array_equal(hand_a.joints_world, hand_b.joints_world)
+        changed += int(np.abs(a.rgb.astype(int) - b.rgb.astype(int)).mean() > 0.5)
+    assert changed >= 2
+    with pytest.raises(InputError, match=r'exposure_s must be within \[0, 1 / fps = 0.1\] s'):
+        SynthConfig(exposure_s=0.2)
