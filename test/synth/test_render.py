@@ -370,6 +370,30 @@ def test_a_moving_hand_is_smeared_along_its_path_and_its_truth_stays_sharp() -> 
     assert not changed[:rows.min() - 2].any() and not changed[rows.max() + 3:].any()
 
 
+def test_a_hand_casts_a_soft_shadow_where_it_keeps_the_lamp_from_the_wall() -> None:
+    lamp = Lighting(ambient=0.6, diffuse=0.0, direction_world=np.array([0.0, 0.0, -1.0]),
+                    lamp_world=np.array([1.0, 0.0, 0.0]), lamp=1.0, tint=np.ones(3))
+    scene = Scene((_wall(1.0),), OrientedBox(np.zeros(3), np.ones(3)),
+                  OrientedBox(np.zeros(3), np.ones(3)), (), lamp)
+    hand = _blob_hand(RIGHT, [0.0, 0.0, 0.8], 0.05)
+    bare = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [], CLEAN)
+    lit = render_frame(scene, K, np.eye(4), WIDTH, HEIGHT, [hand], CLEAN)
+    np.testing.assert_array_equal(lit.depth[~lit.hand_masks[RIGHT]],
+                                  bare.depth[~lit.hand_masks[RIGHT]])
+    ratio = (lit.rgb.astype(float) + 1.0) / (bare.rgb.astype(float) + 1.0)
+    # From the lamp at x = 1 m through the sphere at 0.8 m to the wall at 1 m: centred at
+    # x = -0.25 m (pixel 50 of the centre row), 0.0625 m (7.5 px) high and, the light coming in
+    # at 1 / cos = 1.6, 12 px wide; there the wall keeps only its ambient light: 0.6 of
+    # 0.6 + 0.176 (the lamp's Lambert term).
+    centre = ratio[HEIGHT // 2, 50]
+    np.testing.assert_allclose(centre, 0.6 / (0.6 + 0.625 / (1.0 + 1.6 ** 2)), atol=0.04)
+    # Softly: partly lit at its rim; the wall away from it keeps all its light.
+    assert centre[1] + 0.05 < ratio[HEIGHT // 2 + 8, 50, 1] < 0.99
+    np.testing.assert_allclose(ratio[HEIGHT // 2, :30], 1.0, atol=0.02)
+    np.testing.assert_allclose(ratio[HEIGHT // 2, 120:], 1.0, atol=0.01)
+    np.testing.assert_allclose(ratio[:HEIGHT // 2 - 15], 1.0, atol=0.02)
+
+
 def test_bad_inputs_raise_clear_errors(room: Scene) -> None:
     hand = _blob_hand(LEFT, [0, 0, 1])
     with pytest.raises(InputError, match='K: expected shape'):
