@@ -338,8 +338,8 @@ def surface_normals(points: np.ndarray, capsules: CapsuleSet, ids: np.ndarray) -
     """Outward unit normals (N, 3) at points (N, 3) on the surfaces of capsules ``ids`` (N,).
 
     On a round cone the normal runs from the centre of the sphere that touches the surface at
-    the point; that centre lies on the axis, ``sin * |rel - y w|`` before the point's own
-    position ``y`` along it, clipped to the segment.
+    the point; that centre lies on the axis, ``tan`` times the point's distance from the axis
+    before the point's own position along it, clipped to the segment.
     """
     starts = capsules.starts[ids]
     axes = capsules.ends[ids] - starts

@@ -7,6 +7,7 @@ from infinihand_ros.ba import costs
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.correspondences import build_problem
 from infinihand_ros.ba.correspondences import ransac_inliers
+from infinihand_ros.ba.problem import BAProblem
 from infinihand_ros.ba.solver import BundleAdjuster
 from infinihand_ros.core import geometry
 from infinihand_ros.synth.sequence import SynthConfig
@@ -14,6 +15,17 @@ from infinihand_ros.synth.sequence import SyntheticSequence
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
+
+
+def _errors_at(problem: BAProblem, poses: np.ndarray) -> np.ndarray:
+    """Reprojection error (px) of every observation with the keyframes at ``poses``."""
+    world_to_cam = geometry.invert_transform(poses)
+    state = costs.PoseState(world_to_cam[:, :3, :3], world_to_cam[:, :3, 3],
+                            problem.prior_inv_depth)
+    rays = costs.host_rays(problem.intrinsics, problem.host, problem.host_xy)
+    return np.linalg.norm(costs.reprojection(
+        state, rays, problem.host, problem.obs_track, problem.obs_frame, problem.obs_xy,
+        problem.intrinsics, with_jacobians=False).residual, axis=-1)
 
 
 @pytest.fixture(scope='module')
@@ -29,13 +41,7 @@ def test_tracks_reproject_within_a_pixel_of_the_truth(keyframes: list) -> None:
     poses = np.stack([keyframe.T_world_cam for keyframe in keyframes])
     fixed = np.arange(len(keyframes)) == 0
     problem = build_problem(keyframes, poses, fixed, config.tracking, config.solver)
-    world_to_cam = geometry.invert_transform(poses)
-    state = costs.PoseState(world_to_cam[:, :3, :3], world_to_cam[:, :3, 3],
-                            problem.prior_inv_depth)
-    rays = costs.host_rays(problem.intrinsics, problem.host, problem.host_xy)
-    error = np.linalg.norm(costs.reprojection(
-        state, rays, problem.host, problem.obs_track, problem.obs_frame, problem.obs_xy,
-        problem.intrinsics, with_jacobians=False).residual, axis=-1)
+    error = _errors_at(problem, poses)
     assert len(problem.host) > 300  # muted textures, hands and forearms: fewer scene corners
     assert np.median(error) < 1.0
     gap = problem.obs_frame - problem.host[problem.obs_track]
@@ -82,9 +88,13 @@ def test_pose_priors_follow_the_initial_poses_not_the_raw_ones(keyframes: list) 
     problem = build_problem(drifted, truth, fixed, config.tracking, config.solver)
     expected = geometry.invert_transform(truth[:-1]) @ truth[1:]
     np.testing.assert_allclose(problem.prior_T_rel, expected, atol=1e-9)
-    # With few tracks the priors weigh: keep 1 in 40 observations (about 20). Priors from the
-    # raw poses put the last keyframe 9 deg off here; from the initial poses, 0.3 deg.
-    keep = np.arange(len(problem.obs_track)) % 40 == 0
+    # With few tracks the priors weigh: keep 1 in 40 observations (about 20), of those that
+    # agree with the truth (about 5 % of them are over 3 px off; outliers are the robust loss's
+    # part, not this test's). Priors from the raw poses put the last keyframe 7 deg off here;
+    # from the initial poses, 0.4 deg.
+    agree = np.flatnonzero(_errors_at(problem, truth) < 2.0)
+    keep = np.zeros(len(problem.obs_track), bool)
+    keep[agree[::40]] = True
     sparse = dataclasses.replace(problem, obs_track=problem.obs_track[keep],
                                  obs_frame=problem.obs_frame[keep], obs_xy=problem.obs_xy[keep],
                                  obs_weight=problem.obs_weight[keep])
