@@ -28,6 +28,7 @@ from typing import Final
 
 import cv2
 from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.geometry import project_points
 from infinihand_ros.core.hand_conventions import FINGER_JOINTS
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
@@ -535,8 +536,7 @@ def _shadow_map(capsules: caps.CapsuleSet, palms: caps.PalmSet, rotation: np.nda
     depth = np.full((size, size), np.inf, np.float32)
     scale = 1 << SUBPIXEL_BITS
     move = (lambda points: points @ rotation.T + translation)
-    project = (lambda points: np.round((points[..., :2] / points[..., 2:] * k[0, 0] + k[:2, 2])
-                                       * scale).astype(np.int32))
+    project = (lambda points: np.round(project_points(points, k) * scale).astype(np.int32))
     ends = np.stack([move(capsules.starts), move(capsules.ends)], axis=1)  # (N, 2, 3)
     radii = capsules.radii.max(axis=1)
     nearest = ends[..., 2].min(axis=1) - radii
@@ -584,34 +584,24 @@ def _cast_shadows(frame: _Frame, bodies: _Bodies, lighting: Lighting) -> None:
     normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), PARALLEL_EPS)
     eye = -frame.rot_cw.T @ frame.t_cw
     normals *= np.where(np.sum(normals * (eye - world), axis=-1, keepdims=True) < 0, -1.0, 1.0)
-    total = lighting.shade(world, normals)
+    sun, lamp = lighting.direct_terms(world, normals)
+    total = lighting.ambient + sun + lamp
     lost = np.zeros(depth.shape)
     for light in views:
         local = (world - light.origin) @ light.rotation.T
-        z = np.maximum(local[..., 2], PARALLEL_EPS)
-        u = np.round(light.k[0, 0] * local[..., 0] / z + light.k[0, 2]).astype(int)
-        v = np.round(light.k[1, 1] * local[..., 1] / z + light.k[1, 2]).astype(int)
+        u, v = np.round(project_points(local, light.k)).astype(int).transpose(2, 0, 1)
         inside = (seen & (local[..., 2] > frame.near_m) & (u >= 0) & (u < SHADOW_MAP_PX)
                   & (v >= 0) & (v < SHADOW_MAP_PX))
         occluder = np.full(depth.shape, np.inf)
         occluder[inside] = light.depth[v[inside], u[inside]]
-        behind = z > occluder + SHADOW_BIAS_M
-        if light.lamp:  # the lamp's term of ``Lighting.shade``
-            to_lamp = light.origin - world
-            dist = np.linalg.norm(to_lamp, axis=-1)
-            share = (lighting.lamp * np.clip(np.sum(normals * to_lamp, axis=-1) / dist, 0.0, None)
-                     / (1.0 + dist ** 2))
-        else:
-            share = lighting.diffuse * np.clip(normals @ lighting.direction_world, 0.0, None)
-        lost += behind * share
+        lost += (local[..., 2] > occluder + SHADOW_BIAS_M) * (lamp if light.lamp else sun)
     if not lost.any():
         return
     keep = 1.0 - np.where(seen, lost / np.maximum(total, PARALLEL_EPS), 0.0)
     median_depth = max(float(np.median(depth[seen])), PARALLEL_EPS)
     sigma = float(np.clip(frame.k[0, 0] * PENUMBRA_M / median_depth / step, 0.5, 8.0))
-    keep = cv2.GaussianBlur(keep.astype(np.float32), (0, 0), sigma)
-    keep = cv2.resize(keep, (len(cols) * step, len(rows) * step),
-                      interpolation=cv2.INTER_LINEAR)[:height, :width]
+    keep = _upsampled(cv2.GaussianBlur(keep.astype(np.float32), (0, 0), sigma), step, height,
+                      width)
     frame.rgb[:] = np.clip(frame.rgb * keep[..., None] + 0.5, 0, 255).astype(np.uint8)
 
 
@@ -709,6 +699,13 @@ def _antialias(rgb: np.ndarray, covered: np.ndarray, rows: np.ndarray, cols: np.
     rgb[y0:y1, x0:x1][band] = blurred[band]
 
 
+def _upsampled(coarse: np.ndarray, step: int, height: int, width: int) -> np.ndarray:
+    """Bilinear upsampling of values at the centres of ``step``-pixel blocks to (height, width)."""
+    blocks_y, blocks_x = coarse.shape[:2]
+    return cv2.resize(coarse, (blocks_x * step, blocks_y * step),
+                      interpolation=cv2.INTER_LINEAR)[:height, :width]
+
+
 def _shifted_pixels(k: np.ndarray, u: np.ndarray, v: np.ndarray, depth: np.ndarray,
                     rot: np.ndarray, shift: np.ndarray,
                     travel: np.ndarray | None = None) -> np.ndarray:
@@ -722,11 +719,10 @@ def _shifted_pixels(k: np.ndarray, u: np.ndarray, v: np.ndarray, depth: np.ndarr
     ray_y = (v - k[1, 2]) / k[1, 1]
     moved = [depth * (rot[i, 0] * ray_x + rot[i, 1] * ray_y + rot[i, 2]) + shift[i]
              for i in range(3)]
+    moved = np.stack(moved, axis=-1)
     if travel is not None:
-        moved = [axis + travel[..., i] for i, axis in enumerate(moved)]
-    z = np.maximum(moved[2], PARALLEL_EPS)
-    return np.stack([k[0, 0] * moved[0] / z + k[0, 2] - u,
-                     k[1, 1] * moved[1] / z + k[1, 2] - v], axis=-1)
+        moved += travel
+    return project_points(moved, k) - np.stack(np.broadcast_arrays(u, v), axis=-1)
 
 
 def _expose(frame: _Frame, bodies: _Bodies, owner: np.ndarray, hands: Sequence[HandGeometry],
@@ -769,8 +765,7 @@ def _expose(frame: _Frame, bodies: _Bodies, owner: np.ndarray, hands: Sequence[H
             travel = part[ids] @ pose[:3, :3]  # world motion, in this camera
             exact[:, 2 * end:2 * end + 2] = _shifted_pixels(
                 frame.k, cols, rows, depth[rows, cols], rot, shift, travel)
-    offsets = cv2.resize(coarse, (blocks_x * step, blocks_y * step),
-                         interpolation=cv2.INTER_LINEAR)[:height, :width]
+    offsets = _upsampled(coarse, step, height, width)
     offsets[rows, cols] = exact
     path = offsets[..., 2:] - offsets[..., :2]
     longest = float(np.sqrt((path * path).sum(axis=-1).max()))

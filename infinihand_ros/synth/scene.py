@@ -140,11 +140,17 @@ class Lighting:
         Lambert for ``wrap`` 0; a positive ``wrap`` lets the directional light reach past the
         terminator, ``(n . l + wrap) / (1 + wrap)``, as light scattered under skin does.
         """
+        direct, lamp = self.direct_terms(points, normals, wrap)
+        return self.ambient + direct + lamp
+
+    def direct_terms(self, points: np.ndarray, normals: np.ndarray,
+                     wrap: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Shares (N,) of the directional light and of the lamp in ``shade``."""
         direct = np.clip((normals @ self.direction_world + wrap) / (1.0 + wrap), 0.0, None)
         to_lamp = self.lamp_world - points
         dist = np.linalg.norm(to_lamp, axis=-1)
         lamp = np.clip(np.sum(normals * to_lamp, axis=-1) / dist, 0.0, None) / (1.0 + dist ** 2)
-        return self.ambient + self.diffuse * direct + self.lamp * lamp
+        return self.diffuse * direct, self.lamp * lamp
 
 
 @dataclass(frozen=True)
