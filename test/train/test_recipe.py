@@ -37,7 +37,7 @@ def test_every_stage_resolves_through_the_loader(recipe: Recipe) -> None:
     assert recipe.export.stage == recipe.stages[-1].name
 
 
-@pytest.mark.parametrize('name', ['22_heads', '21_heads', '15_joint'])
+@pytest.mark.parametrize('name', ['23_heads', '22_heads', '15_joint'])
 def test_the_saved_configs_of_the_last_stages_are_what_the_recipe_resolves(
         recipe: Recipe, name: str) -> None:
     """The resolved configs beside the model (from the full files they trained with) match."""
@@ -81,7 +81,7 @@ def _write_recipe(tmp_path: Path, edit) -> Path:
     (lambda r: r['stages'][0].update(steps='many'), r'stages\[0\]\.steps: expected int'),
     (lambda r: r['settings'][2]['set'].update({'train.clip.stride': 2}),
      r"settings\[2\]\.set: --set train\.clip\.stride: train\.clip has no key 'stride'"),
-    (lambda r: r['export'].update(stage='23_heads'), r'export\.stage'),
+    (lambda r: r['export'].update(stage='24_heads'), r'export\.stage'),
     (lambda r: r['training_sets'][1].update(name='synth_train'), r'names must differ'),
     (lambda r: r['training_sets'][0].update(seeds=[[5, 4]]), r'\[5, 4\] is no range'),
 ])
