@@ -15,6 +15,7 @@ of ``data/hand_masks.py`` are cut from it.
 """
 
 from dataclasses import dataclass
+from dataclasses import fields
 from typing import Final
 
 from infinihand_ros.core.hand_conventions import JOINT_PARENTS
@@ -77,6 +78,10 @@ class CapsuleSet:
     start_caps: np.ndarray
     end_caps: np.ndarray
     sides: np.ndarray
+
+    def subset(self, keep: np.ndarray) -> 'CapsuleSet':
+        """Return the capsules that ``keep`` selects (a bool mask (N,) or indices)."""
+        return CapsuleSet(*(getattr(self, field.name)[keep] for field in fields(self)))
 
 
 def joint_radii(betas: np.ndarray) -> np.ndarray:

@@ -494,9 +494,8 @@ def _light_views(frame: _Frame, bodies: _Bodies, lighting: Lighting) -> list[_Li
     to_world = frame.rot_cw.T
     # Casters: the hands and their forearms (an upper arm's shadow falls out of view).
     index = np.arange(len(bodies.capsules.radii))
-    casters = caps.CapsuleSet(*(getattr(bodies.capsules, name)[
-        (index < bodies.num_hand) | ((index - bodies.num_hand) % 3 != 2)]
-        for name in ('starts', 'ends', 'radii', 'start_caps', 'end_caps', 'sides')))
+    casters = bodies.capsules.subset((index < bodies.num_hand)
+                                     | ((index - bodies.num_hand) % 3 != 2))
     points = np.concatenate([casters.starts, casters.ends])
     centre_cam = 0.5 * (points.min(axis=0) + points.max(axis=0))
     radius = float(np.linalg.norm(points - centre_cam, axis=1).max()) + float(casters.radii.max())
@@ -717,9 +716,8 @@ def _shifted_pixels(k: np.ndarray, u: np.ndarray, v: np.ndarray, depth: np.ndarr
     """
     ray_x = (u - k[0, 2]) / k[0, 0]
     ray_y = (v - k[1, 2]) / k[1, 1]
-    moved = [depth * (rot[i, 0] * ray_x + rot[i, 1] * ray_y + rot[i, 2]) + shift[i]
-             for i in range(3)]
-    moved = np.stack(moved, axis=-1)
+    moved = np.stack([depth * (rot[i, 0] * ray_x + rot[i, 1] * ray_y + rot[i, 2]) + shift[i]
+                      for i in range(3)], axis=-1)
     if travel is not None:
         moved += travel
     return project_points(moved, k) - np.stack(np.broadcast_arrays(u, v), axis=-1)
