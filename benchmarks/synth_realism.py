@@ -1,7 +1,7 @@
 """Realism of the synthetic hands: how many MediaPipe Hands finds and how well it agrees.
 
     python benchmarks/synth_realism.py [--seeds 25000 ... 25007] [--frames 60] [--size 336x252]
-        [--json] [--save-preview PATH]
+        [--stills DIR] [--real-stills N] [--json] [--save-preview PATH]
 
 Generates synthetic sequences (both hands; by default seeds 25000-25007, a range no training or
 evaluation set uses) and runs MediaPipe Hands on them as it is (video mode, its palm detector
@@ -11,29 +11,41 @@ detections scoring at least ``hands.min_confidence``). A visible truth hand (at 
 box (IoU of the detection's landmark box with the truth's mask box at least 0.3); found regardless
 of side is counted apart (side swaps). Whole hands are the visible ones whose 21 joints all lie in
 the image, cut hands the others; overlapping hands are whole hands whose box overlaps another
-visible hand's. PCK@0.2 over the found hands: the share of their truth joints inside the image (and
-in front of the camera) whose detection lies within 0.2 of the truth box's longer side. A detection
-overlapping no visible truth hand (either side) is a false positive. Isolated hands are the whole
-ones that overlap no other; the ceiling is the found share if every isolated hand were found and
-the others as they are: what realism of the hands alone can reach with the sequences' framing.
-Prints per seed and overall, beside the targets of issue 39 (found >= 90 %, PCK@0.2 >= 80 %),
-with MediaPipe's median ms/frame.
+visible hand's, isolated hands the whole ones that overlap no other. PCK@0.2 over the found hands:
+the share of their truth joints inside the image (and in front of the camera) whose detection
+lies within 0.2 of the truth box's longer side. A detection overlapping no visible truth hand
+(either side) is a false positive. Prints per seed and overall, beside the targets of issue 39
+(found >= 90 %, PCK@0.2 >= 80 %), with MediaPipe's median ms/frame.
+
+Then the real reference: the found share by the number of joints in the image, for the synthetic
+hands overlapping no other hand and for real hands cut the same way. Each hand MediaPipe finds
+in the shared real stills (``../shared/data/real_hands_stills``, static mode, the whole photo) is
+filmed by a crop window (``PAN_CROP_BOXES`` times the hand's box, the benchmark's image size)
+panning until the hand has left through one border, for each border: the frames in order (the
+hand leaving, tracked) and reversed (the hand entering, found afresh), MediaPipe as above; its
+truth is the reference's landmarks moved into each crop, its box their box clipped to the image.
+Skipped when the stills are absent (``--real-stills 0`` skips it).
 ``--save-preview`` writes a PNG grid of each sequence's middle frame: truth boxes green, detections
 red. Figures only; nothing is asserted.
 """
 
 import argparse
 import json
+from pathlib import Path
 import sys
 import time
 
 import cv2
+from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.data.keypoint_source import Detection2D
+from infinihand_ros.data.mediapipe_source import MediaPipeConfig
+from infinihand_ros.data.mediapipe_source import MediaPipeKeypointSource
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
+from infinihand_ros.synth.photo_streams import crop_stream
 from infinihand_ros.synth.sequence import HandTruth
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
@@ -41,15 +53,39 @@ from infinihand_ros.synth.sequence import SynthFrame
 import numpy as np
 
 SEEDS = tuple(range(25000, 25008))
+STILLS = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real_hands_stills'
 #: A detection matches a truth hand whose box it overlaps at least this much.
 MATCH_IOU = 0.3
 #: PCK threshold as a fraction of the truth box's longer side.
 PCK_FRACTION = 0.2
 TARGET_FOUND = 0.9
 TARGET_PCK = 0.8
+#: Bins of the number of a hand's joints inside the image (lowest, highest), whole hands first.
+JOINT_BINS = ((21, 21), (19, 20), (16, 18), (10, 15), (1, 9))
+#: The real reference's crop window, in multiples of the hand's landmark box (longer side), and
+#: the frames of a pan from the hand centred to the hand gone.
+PAN_CROP_BOXES = 3.5
+PAN_STEPS = 20
+#: Directions (x, y) the window moves the hand in: out through the bottom, top, right, left.
+PAN_BORDERS = ((0, 1), (0, -1), (1, 0), (-1, 0))
 COUNTS = ('frames', 'visible', 'found', 'found_any', 'visible_whole', 'found_whole',
           'visible_overlapping', 'found_overlapping', 'pck_joints', 'pck_correct',
           'false_positives', 'scene_cuts')
+
+
+def _bin_label(low: int, high: int) -> str:
+    return str(low) if low == high else f'{low}-{high}'
+
+
+def _joint_bin(count: int) -> str | None:
+    """Return the label of the bin holding ``count`` joints in the image (None for 0)."""
+    return next((_bin_label(low, high) for low, high in JOINT_BINS if low <= count <= high),
+                None)
+
+
+def _bin_counts() -> dict[str, list[int]]:
+    """Return empty [hands, found] counts per joint bin."""
+    return {_bin_label(low, high): [0, 0] for low, high in JOINT_BINS}
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -76,17 +112,23 @@ def _in_image(truth: HandTruth, width: int, height: int) -> np.ndarray:
     return (truth.joints_cam[:, 2] > 0) & (x >= 0) & (x < width) & (y >= 0) & (y < height)
 
 
-def _score_frame(frame: SynthFrame, detections: list[Detection2D], counts: dict) -> None:
-    """Add one frame's figures to ``counts``."""
+def _score_frame(frame: SynthFrame, detections: list[Detection2D], counts: dict,
+                 bins: dict[str, list[int]]) -> None:
+    """Add one frame's figures to ``counts``, and its hands overlapping no other to ``bins``."""
     height, width = frame.rgb.shape[:2]
     visible = [truth for truth in frame.hands if truth.visible]
     counts['frames'] += 1
     for truth in visible:
         inside = _in_image(truth, width, height)
         whole = bool(inside.all())
-        overlapping = whole and any(box_iou(truth.box_xyxy, other.box_xyxy) > 0
-                                    for other in visible if other is not truth)
+        alone = not any(box_iou(truth.box_xyxy, other.box_xyxy) > 0
+                        for other in visible if other is not truth)
+        overlapping = whole and not alone
         match = _best_match(truth, detections, same_side=True)
+        label = _joint_bin(int(inside.sum()))
+        if alone and label is not None:
+            bins[label][0] += 1
+            bins[label][1] += match is not None
         counts['visible'] += 1
         counts['visible_whole'] += whole
         counts['visible_overlapping'] += overlapping
@@ -120,7 +162,6 @@ def _figures(counts: dict, times: list[float]) -> dict[str, object]:
             'found_overlapping_share': (counts['found_overlapping']
                                         / max(counts['visible_overlapping'], 1)),
             'found_isolated_share': found_isolated / max(isolated, 1),
-            'found_ceiling_share': (counts['found'] + isolated - found_isolated) / visible,
             'pck': counts['pck_correct'] / counts['pck_joints'] if counts['pck_joints'] else None,
             'false_positives_per_frame': counts['false_positives'] / max(counts['frames'], 1),
             'mediapipe_ms_per_frame': 1e3 * float(np.median(times))}
@@ -151,7 +192,10 @@ def _grid(tiles: list[np.ndarray], columns: int = 4) -> np.ndarray:
 
 
 def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, list[np.ndarray]]:
-    """Return the figures per seed and overall, and one annotated middle frame per seed."""
+    """Return the figures per seed and overall, and one annotated middle frame per seed.
+
+    ``report['joint_bins']`` holds [hands, found] per joint bin of the hands overlapping no other.
+    """
     config = HandsConfig(source='mediapipe', search_interval=1)  # MediaPipe as it is
     detector = MediaPipeDetector(config)
     synth = SynthConfig(width=size[0], height=size[1])
@@ -159,6 +203,7 @@ def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, lis
                                  'targets': {'found_share': TARGET_FOUND, 'pck': TARGET_PCK},
                                  'seeds': {}}
     total = dict.fromkeys(COUNTS, 0)
+    bins = _bin_counts()
     all_times: list[float] = []
     previews = []
     try:
@@ -172,7 +217,7 @@ def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, lis
                 found = detector.detect(frame.rgb, frame.index)
                 times.append(time.perf_counter() - start)
                 kept = [d for d in found if d.confidence >= config.min_confidence]
-                _score_frame(frame, kept, counts)
+                _score_frame(frame, kept, counts, bins)
                 if frame.index == frames // 2:
                     previews.append(_draw(frame, kept))
             counts['scene_cuts'] = detector.scene_cuts - cuts
@@ -182,7 +227,74 @@ def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, lis
     finally:
         detector.close()
     report['overall'] = _figures(total, all_times)
+    report['joint_bins'] = bins
     return report, previews
+
+
+def pan_windows(box: np.ndarray, direction: tuple[int, int], photo_size: tuple[int, int],
+                size: tuple[int, int]) -> tuple[np.ndarray, float]:
+    """Return the centres (N, 2) and the width of a crop window moving a hand out of view.
+
+    The window (``PAN_CROP_BOXES`` times the box's longer side, the aspect of ``size``) starts
+    centred on the box and moves against ``direction`` until the whole box has left through
+    that border (by half its side or more); the pan stops where the window would leave the
+    photo.
+    """
+    side = float(max(box[2] - box[0], box[3] - box[1]))
+    width = PAN_CROP_BOXES * side
+    half = 0.5 * np.array([width, width * size[1] / size[0]])
+    step = np.asarray(direction, float)
+    travel = float(half @ np.abs(step)) + side
+    centres = (0.5 * (box[:2] + box[2:])
+               - np.outer(np.linspace(0.0, travel, PAN_STEPS), step))
+    inside = np.all((centres - half >= 0) & (centres + half <= photo_size), axis=1)
+    return centres[:int(np.argmin(inside)) if not inside.all() else None], width
+
+
+def crop_joints(joints: np.ndarray, photo_k, crop_k) -> np.ndarray:
+    """Return photo pixels (N, 2) moved into a crop with intrinsics ``crop_k`` (same camera)."""
+    scale = np.array([crop_k.fx / photo_k.fx, crop_k.fy / photo_k.fy])
+    return (joints - [photo_k.cx, photo_k.cy]) * scale + [crop_k.cx, crop_k.cy]
+
+
+def real_reference(stills: Path, limit: int | None,
+                   size: tuple[int, int]) -> dict[str, dict[str, list[int]]]:
+    """Return [hands, found] per joint bin for real hands leaving and entering the image."""
+    config = HandsConfig(source='mediapipe', search_interval=1)
+    photos = list(read_camera_frames(stills))[:limit]
+    with MediaPipeKeypointSource(MediaPipeConfig(static_image_mode=True)) as reference:
+        hands = [(photo, hand) for index, photo in enumerate(photos)
+                 for hand in reference.detect(photo.rgb, index)
+                 if hand.confidence >= config.min_confidence]
+    bins = {'leaving': _bin_counts(), 'entering': _bin_counts()}
+    detector = MediaPipeDetector(config)
+    try:
+        for photo, hand in hands:
+            photo_size = (photo.rgb.shape[1], photo.rgb.shape[0])
+            for direction in PAN_BORDERS:
+                centres, width = pan_windows(landmark_box(hand.joints_2d), direction,
+                                             photo_size, size)
+                crops = crop_stream(photo.rgb, photo.intrinsics, centres,
+                                    np.full(len(centres), width), size)
+                for name, order in (('leaving', crops), ('entering', crops[::-1])):
+                    detector.reset()
+                    for index, crop in enumerate(order):
+                        joints = crop_joints(hand.joints_2d, photo.intrinsics, crop.intrinsics)
+                        inside = np.all((joints >= 0) & (joints < size), axis=1)
+                        found = [d for d in detector.detect(crop.rgb, index)
+                                 if d.confidence >= config.min_confidence]
+                        label = _joint_bin(int(inside.sum()))
+                        if label is None:
+                            continue
+                        box = np.clip(landmark_box(joints), 0, [*size, *size])
+                        bins[name][label][0] += 1
+                        bins[name][label][1] += any(
+                            d.side == hand.side
+                            and box_iou(landmark_box(d.joints_2d), box) >= MATCH_IOU
+                            for d in found)
+    finally:
+        detector.close()
+    return bins
 
 
 def _percent(value: float | None) -> str:
@@ -190,12 +302,17 @@ def _percent(value: float | None) -> str:
     return '-' if value is None else f'{100 * value:.1f}'
 
 
+def _share(counts: list[int]) -> str:
+    """Format [hands, found] as 'found % (hands)'."""
+    return f'{_percent(counts[1] / counts[0]) if counts[0] else "-":>6} ({counts[0]:>4})'
+
+
 def _print(report: dict) -> None:
-    """Print the report as a table."""
+    """Print the report as tables."""
     print(f"MediaPipe Hands on synthetic sequences, {report['size']}, "
           f"{report['frames_per_seed']} frames per seed, both hands")
     print(f"{'seed':>8}{'visible':>8}{'found':>7}{'any':>6}{'found %':>9}{'any %':>7}"
-          f"{'whole %':>9}{'cut %':>7}{'overlap %':>10}{'isol %':>8}{'ceil %':>8}{'PCK %':>7}"
+          f"{'whole %':>9}{'cut %':>7}{'overlap %':>10}{'isol %':>8}{'PCK %':>7}"
           f"{'FP':>5}{'FP/fr':>7}"
           f"{'cuts':>6}{'ms/fr':>7}")
     rows = [*report['seeds'].items(), ('overall', report['overall'])]
@@ -204,14 +321,23 @@ def _print(report: dict) -> None:
               f"{_percent(row['found_share']):>9}{_percent(row['found_any_share']):>7}"
               f"{_percent(row['found_whole_share']):>9}{_percent(row['found_cut_share']):>7}"
               f"{_percent(row['found_overlapping_share']):>10}"
-              f"{_percent(row['found_isolated_share']):>8}"
-              f"{_percent(row['found_ceiling_share']):>8}{_percent(row['pck']):>7}"
+              f"{_percent(row['found_isolated_share']):>8}{_percent(row['pck']):>7}"
               f"{row['false_positives']:>5}{row['false_positives_per_frame']:>7.2f}"
               f"{row['scene_cuts']:>6}{row['mediapipe_ms_per_frame']:>7.1f}")
     print(f'targets: found (same side) >= {100 * TARGET_FOUND:.0f} %, '
           f'PCK@{PCK_FRACTION} >= {100 * TARGET_PCK:.0f} %; found among whole (all 21 joints in '
           'the image), cut (the others), overlapping (whole, box overlapping another) and '
-          'isolated hands (whole, not overlapping); ceil: found if every isolated hand were')
+          'isolated hands (whole, not overlapping)')
+    real = report.get('real_reference')
+    print('\nfound % (hands) by joints in the image, hands overlapping no other: synthetic, '
+          + ('and real stills panned out of view (leaving) and into it (entering)' if real
+             else 'no real reference (stills absent or --real-stills 0)'))
+    print(f"{'joints':>7}{'synthetic':>14}" + (f"{'real leaving':>15}{'real entering':>15}"
+                                               if real else ''))
+    for label, counts in report['joint_bins'].items():
+        print(f'{label:>7}{_share(counts):>14}' + (
+            f"{_share(real['leaving'][label]):>15}{_share(real['entering'][label]):>15}"
+            if real else ''))
 
 
 def main() -> int:
@@ -222,14 +348,22 @@ def main() -> int:
     parser.add_argument('--frames', type=int, default=60, help='frames per sequence')
     parser.add_argument('--size', type=_size, default=(336, 252),
                         help='image size WxH (336x252: the bundled model input; or 518x378)')
+    parser.add_argument('--stills', type=Path, default=STILLS,
+                        help='the real stills bag (default ../shared/data/real_hands_stills)')
+    parser.add_argument('--real-stills', type=int, default=None, metavar='N',
+                        help='pan the hands of the first N stills (default all; 0: no reference)')
     parser.add_argument('--json', action='store_true', help='print one JSON object')
     parser.add_argument('--save-preview', metavar='PATH',
                         help="write a PNG grid of each sequence's middle frame")
     args = parser.parse_args()
     if args.frames < 1:
         parser.error(f'--frames must be at least 1, got {args.frames}')
+    if args.real_stills is not None and args.real_stills < 0:
+        parser.error(f'--real-stills must be at least 0, got {args.real_stills}')
     cv2.setNumThreads(1)
     report, previews = run(args.seeds, args.frames, args.size)
+    if args.real_stills != 0 and args.stills.exists():
+        report['real_reference'] = real_reference(args.stills, args.real_stills, args.size)
     if args.save_preview and not cv2.imwrite(args.save_preview, _grid(previews)):
         parser.error(f'--save-preview: could not write {args.save_preview}')
     if args.json:

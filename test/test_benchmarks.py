@@ -7,6 +7,7 @@ from pathlib import Path
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / 'benchmarks'
@@ -81,11 +82,13 @@ def test_gpu_check_runs_on_the_tiny_model_on_the_cpu(tmp_path: Path) -> None:
 
 def test_synth_realism_reports_consistent_overall_figures() -> None:
     """benchmarks/synth_realism.py runs MediaPipe on 4 synthetic frames; its counts agree."""
+    stills = BENCHMARKS.parents[1] / 'shared' / 'data' / 'real_hands_stills'
     run = subprocess.run([sys.executable, str(BENCHMARKS / 'synth_realism.py'), '--seeds', '0',
-                          '--frames', '4', '--json'],
+                          '--frames', '4', '--real-stills', '2', '--json'],
                          capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stderr
-    overall = json.loads(run.stdout.strip().splitlines()[-1])['overall']
+    report = json.loads(run.stdout.strip().splitlines()[-1])
+    overall = report['overall']
     assert overall['frames'] == 4 and overall['visible'] > 0
     assert 0 <= overall['found'] <= overall['found_any'] <= overall['visible']
     assert overall['found_share'] == overall['found'] / overall['visible']
@@ -93,9 +96,57 @@ def test_synth_realism_reports_consistent_overall_figures() -> None:
             <= overall['visible_whole'])
     assert overall['found_whole'] <= overall['found'] and 0 <= overall['found_cut_share'] <= 1
     assert 0 <= overall['found_isolated_share'] <= 1
-    assert overall['found_share'] <= overall['found_ceiling_share'] <= 1
     assert overall['pck'] is None or 0 <= overall['pck'] <= 1
     assert overall['false_positives'] >= 0 and overall['mediapipe_ms_per_frame'] > 0
+    bins = report['joint_bins']
+    assert list(bins) == ['21', '19-20', '16-18', '10-15', '1-9']
+    assert all(0 <= found <= hands for hands, found in bins.values())
+    assert bins['21'][0] == overall['visible_whole'] - overall['visible_overlapping']
+    assert sum(hands for hands, _ in bins.values()) <= overall['visible']
+    if stills.is_dir():  # the real reference: the first two stills' hands panned out and in
+        real = report['real_reference']
+        for pans in real.values():
+            assert list(pans) == list(bins)
+            assert pans['21'][0] > 0 and all(0 <= found <= hands for hands, found in pans.values())
+        # The same frames in reverse order: the same hands per bin.
+        assert ([hands for hands, _ in real['leaving'].values()]
+                == [hands for hands, _ in real['entering'].values()])
+    else:
+        assert 'real_reference' not in report
+
+
+def test_synth_realism_pans_move_the_hand_out_through_one_border() -> None:
+    """The real reference's crop windows start on the hand, end past the border, stay inside."""
+    realism = _benchmark('synth_realism')
+    box = np.array([300.0, 200.0, 340.0, 250.0])  # 40 x 50 px: windows 175 x 131 px
+    centres, width = realism.pan_windows(box, (0, 1), (640, 480), (336, 252))
+    assert width == pytest.approx(realism.PAN_CROP_BOXES * 50.0)
+    assert np.allclose(centres[0], [320.0, 225.0]) and np.allclose(centres[:, 0], 320.0)
+    height = width * 252 / 336
+    assert box[1] > centres[-1, 1] + height / 2  # the whole box below the window's bottom
+    assert box[3] < centres[0, 1] + height / 2  # ... which it started inside
+    assert len(centres) == realism.PAN_STEPS
+    near_edge, _ = realism.pan_windows(np.array([10.0, 200.0, 50.0, 250.0]), (1, 0),
+                                       (640, 480), (336, 252))
+    assert len(near_edge) == 0  # the first window would leave the photo: no pan
+
+
+def test_synth_realism_moves_joints_into_crops_exactly() -> None:
+    """A dot at a joint in a photo lands where ``crop_joints`` puts the joint in the crop."""
+    from infinihand_ros.core.datatypes import Intrinsics
+    from infinihand_ros.synth.photo_streams import crop_stream
+    realism = _benchmark('synth_realism')
+    photo = np.zeros((480, 640, 3), np.uint8)
+    joint = np.array([[402.0, 251.0]])
+    photo[250:253, 401:404] = 255  # a 3 x 3 dot centred on the joint
+    k = Intrinsics(500.0, 500.0, 320.0, 240.0, 640, 480)
+    crop = crop_stream(photo, k, np.array([[380.0, 230.0]]), np.array([168.0]), (336, 252))[0]
+    moved = realism.crop_joints(joint, k, crop.intrinsics)[0]
+    grey = crop.rgb[..., 0].astype(float)
+    rows, cols = np.nonzero(grey > 0)
+    weights = grey[rows, cols]
+    centre = np.array([cols @ weights, rows @ weights]) / weights.sum()
+    assert np.allclose(centre, moved, atol=0.5)
 
 
 def test_hand_sources_compare_on_the_hands_both_found() -> None:
