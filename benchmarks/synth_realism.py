@@ -4,17 +4,17 @@
         [--stills DIR] [--real-stills N] [--json] [--save-preview PATH]
 
 Generates synthetic sequences (both hands; by default seeds 25000-25007, a range no training or
-evaluation set uses) and runs MediaPipe Hands on them as it is (video mode, its palm detector
-whenever it tracks fewer than two hands: ``hands.search_interval: 1``; ``reset`` between sequences,
-detections scoring at least ``hands.min_confidence``). A visible truth hand (at least
-``synth.min_visible_px`` pixels in view) is found when a detection of the same side overlaps its
-box (IoU of the detection's landmark box with the truth's mask box at least 0.3); found regardless
-of side is counted apart (side swaps). Whole hands are the visible ones whose 21 joints all lie in
-the image, cut hands the others; overlapping hands are whole hands whose box overlaps another
-visible hand's, isolated hands the whole ones that overlap no other. PCK@0.2 over the found hands:
-the share of their truth joints inside the image (and in front of the camera) whose detection
-lies within 0.2 of the truth box's longer side. A detection overlapping no visible truth hand
-(either side) is a false positive. Prints per seed and overall, beside the targets of issue 39
+evaluation set uses) and runs MediaPipe Hands on them as it is (``MEDIAPIPE``: video mode, its palm
+detector whenever it tracks fewer than two hands, its own default tracking confidence; ``reset``
+between sequences, detections scoring at least ``hands.min_confidence``). A visible truth hand (at
+least ``synth.min_visible_px`` pixels in view) is found when a detection of the same side overlaps
+its box (IoU of the detection's landmark box with the truth's mask box at least 0.3); found
+regardless of side is counted apart (side swaps). Whole hands are the visible ones whose 21 joints
+all lie in the image, cut hands the others; overlapping hands are whole hands whose box overlaps
+another visible hand's, isolated hands the whole ones that overlap no other. PCK@0.2 over the found
+hands: the share of their truth joints inside the image (and in front of the camera) whose
+detection lies within 0.2 of the truth box's longer side. A detection overlapping no visible truth
+hand (either side) is a false positive. Prints per seed and overall, beside the targets of issue 39
 (found >= 90 %, PCK@0.2 >= 80 %), with MediaPipe's median ms/frame.
 
 Then the real reference: the found share by the number of joints in the image, for the synthetic
@@ -53,6 +53,9 @@ from infinihand_ros.synth.sequence import SynthFrame
 import numpy as np
 
 SEEDS = tuple(range(25000, 25008))
+#: MediaPipe Hands with its own defaults: every frame searched while fewer than two hands are
+#: tracked, a hand re-detected where its landmark score falls under 0.5 (the engine: 0.8).
+MEDIAPIPE = HandsConfig(source='mediapipe', search_interval=1, min_tracking_confidence=0.5)
 STILLS = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real_hands_stills'
 #: A detection matches a truth hand whose box it overlaps at least this much.
 MATCH_IOU = 0.3
@@ -196,7 +199,7 @@ def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, lis
 
     ``report['joint_bins']`` holds [hands, found] per joint bin of the hands overlapping no other.
     """
-    config = HandsConfig(source='mediapipe', search_interval=1)  # MediaPipe as it is
+    config = MEDIAPIPE
     detector = MediaPipeDetector(config)
     synth = SynthConfig(width=size[0], height=size[1])
     report: dict[str, object] = {'size': f'{size[0]}x{size[1]}', 'frames_per_seed': frames,
@@ -260,7 +263,7 @@ def crop_joints(joints: np.ndarray, photo_k, crop_k) -> np.ndarray:
 def real_reference(stills: Path, limit: int | None,
                    size: tuple[int, int]) -> dict[str, dict[str, list[int]]]:
     """Return [hands, found] per joint bin for real hands leaving and entering the image."""
-    config = HandsConfig(source='mediapipe', search_interval=1)
+    config = MEDIAPIPE
     photos = list(read_camera_frames(stills))[:limit]
     with MediaPipeKeypointSource(MediaPipeConfig(static_image_mode=True)) as reference:
         hands = [(photo, hand) for index, photo in enumerate(photos)
