@@ -37,6 +37,7 @@ import time
 
 import cv2
 from infinihand_ros.bag.camera_stream import read_camera_frames
+from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.data.keypoint_source import Detection2D
 from infinihand_ros.data.mediapipe_source import MediaPipeConfig
@@ -77,6 +78,7 @@ COUNTS = ('frames', 'visible', 'found', 'found_any', 'visible_whole', 'found_who
 
 
 def _bin_label(low: int, high: int) -> str:
+    """Return a joint bin's label ('21', '19-20', ...)."""
     return str(low) if low == high else f'{low}-{high}'
 
 
@@ -199,8 +201,7 @@ def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, lis
 
     ``report['joint_bins']`` holds [hands, found] per joint bin of the hands overlapping no other.
     """
-    config = MEDIAPIPE
-    detector = MediaPipeDetector(config)
+    detector = MediaPipeDetector(MEDIAPIPE)
     synth = SynthConfig(width=size[0], height=size[1])
     report: dict[str, object] = {'size': f'{size[0]}x{size[1]}', 'frames_per_seed': frames,
                                  'targets': {'found_share': TARGET_FOUND, 'pck': TARGET_PCK},
@@ -219,7 +220,7 @@ def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, lis
                 start = time.perf_counter()
                 found = detector.detect(frame.rgb, frame.index)
                 times.append(time.perf_counter() - start)
-                kept = [d for d in found if d.confidence >= config.min_confidence]
+                kept = [d for d in found if d.confidence >= MEDIAPIPE.min_confidence]
                 _score_frame(frame, kept, counts, bins)
                 if frame.index == frames // 2:
                     previews.append(_draw(frame, kept))
@@ -251,10 +252,11 @@ def pan_windows(box: np.ndarray, direction: tuple[int, int], photo_size: tuple[i
     centres = (0.5 * (box[:2] + box[2:])
                - np.outer(np.linspace(0.0, travel, PAN_STEPS), step))
     inside = np.all((centres - half >= 0) & (centres + half <= photo_size), axis=1)
-    return centres[:int(np.argmin(inside)) if not inside.all() else None], width
+    stop = len(centres) if inside.all() else int(np.argmin(inside))  # the first window outside
+    return centres[:stop], width
 
 
-def crop_joints(joints: np.ndarray, photo_k, crop_k) -> np.ndarray:
+def crop_joints(joints: np.ndarray, photo_k: Intrinsics, crop_k: Intrinsics) -> np.ndarray:
     """Return photo pixels (N, 2) moved into a crop with intrinsics ``crop_k`` (same camera)."""
     scale = np.array([crop_k.fx / photo_k.fx, crop_k.fy / photo_k.fy])
     return (joints - [photo_k.cx, photo_k.cy]) * scale + [crop_k.cx, crop_k.cy]
@@ -263,14 +265,13 @@ def crop_joints(joints: np.ndarray, photo_k, crop_k) -> np.ndarray:
 def real_reference(stills: Path, limit: int | None,
                    size: tuple[int, int]) -> dict[str, dict[str, list[int]]]:
     """Return [hands, found] per joint bin for real hands leaving and entering the image."""
-    config = MEDIAPIPE
     photos = list(read_camera_frames(stills))[:limit]
     with MediaPipeKeypointSource(MediaPipeConfig(static_image_mode=True)) as reference:
         hands = [(photo, hand) for index, photo in enumerate(photos)
                  for hand in reference.detect(photo.rgb, index)
-                 if hand.confidence >= config.min_confidence]
+                 if hand.confidence >= MEDIAPIPE.min_confidence]
     bins = {'leaving': _bin_counts(), 'entering': _bin_counts()}
-    detector = MediaPipeDetector(config)
+    detector = MediaPipeDetector(MEDIAPIPE)
     try:
         for photo, hand in hands:
             photo_size = (photo.rgb.shape[1], photo.rgb.shape[0])
@@ -285,7 +286,7 @@ def real_reference(stills: Path, limit: int | None,
                         joints = crop_joints(hand.joints_2d, photo.intrinsics, crop.intrinsics)
                         inside = np.all((joints >= 0) & (joints < size), axis=1)
                         found = [d for d in detector.detect(crop.rgb, index)
-                                 if d.confidence >= config.min_confidence]
+                                 if d.confidence >= MEDIAPIPE.min_confidence]
                         label = _joint_bin(int(inside.sum()))
                         if label is None:
                             continue
