@@ -102,11 +102,11 @@ def _size(text: str) -> tuple[int, int]:
     return width, height
 
 
-def _best_match(truth: HandTruth, detections: list[Detection2D],
+def _best_match(box: np.ndarray, side: int, detections: list[Detection2D],
                 same_side: bool) -> Detection2D | None:
-    """Return the detection overlapping the truth hand's box most (None below ``MATCH_IOU``)."""
-    scored = [(box_iou(landmark_box(d.joints_2d), truth.box_xyxy), d) for d in detections
-              if not same_side or d.side == truth.side]
+    """Return the detection overlapping a truth box most (None below ``MATCH_IOU``)."""
+    scored = [(box_iou(landmark_box(d.joints_2d), box), d) for d in detections
+              if not same_side or d.side == side]
     best = max(scored, key=lambda pair: pair[0], default=(0.0, None))
     return best[1] if best[0] >= MATCH_IOU else None
 
@@ -129,7 +129,7 @@ def _score_frame(frame: SynthFrame, detections: list[Detection2D], counts: dict,
         alone = not any(box_iou(truth.box_xyxy, other.box_xyxy) > 0
                         for other in visible if other is not truth)
         overlapping = whole and not alone
-        match = _best_match(truth, detections, same_side=True)
+        match = _best_match(truth.box_xyxy, truth.side, detections, same_side=True)
         label = _joint_bin(int(inside.sum()))
         if alone and label is not None:
             bins[label][0] += 1
@@ -137,7 +137,8 @@ def _score_frame(frame: SynthFrame, detections: list[Detection2D], counts: dict,
         counts['visible'] += 1
         counts['visible_whole'] += whole
         counts['visible_overlapping'] += overlapping
-        counts['found_any'] += _best_match(truth, detections, same_side=False) is not None
+        counts['found_any'] += _best_match(truth.box_xyxy, truth.side, detections,
+                                           same_side=False) is not None
         if match is None:
             continue
         counts['found'] += 1
@@ -280,22 +281,22 @@ def real_reference(stills: Path, limit: int | None,
                                              photo_size, size)
                 crops = crop_stream(photo.rgb, photo.intrinsics, centres,
                                     np.full(len(centres), width), size)
-                for name, order in (('leaving', crops), ('entering', crops[::-1])):
+                truths = []  # per crop: the hand's joint bin and its box clipped to the image
+                for crop in crops:
+                    joints = crop_joints(hand.joints_2d, photo.intrinsics, crop.intrinsics)
+                    inside = np.all((joints >= 0) & (joints < size), axis=1)
+                    truths.append((_joint_bin(int(inside.sum())),
+                                   np.clip(landmark_box(joints), 0, [*size, *size])))
+                pairs = list(zip(crops, truths))
+                for name, order in (('leaving', pairs), ('entering', pairs[::-1])):
                     detector.reset()
-                    for index, crop in enumerate(order):
-                        joints = crop_joints(hand.joints_2d, photo.intrinsics, crop.intrinsics)
-                        inside = np.all((joints >= 0) & (joints < size), axis=1)
+                    for index, (crop, (label, box)) in enumerate(order):
                         found = [d for d in detector.detect(crop.rgb, index)
                                  if d.confidence >= MEDIAPIPE.min_confidence]
-                        label = _joint_bin(int(inside.sum()))
-                        if label is None:
-                            continue
-                        box = np.clip(landmark_box(joints), 0, [*size, *size])
-                        bins[name][label][0] += 1
-                        bins[name][label][1] += any(
-                            d.side == hand.side
-                            and box_iou(landmark_box(d.joints_2d), box) >= MATCH_IOU
-                            for d in found)
+                        if label is not None:
+                            bins[name][label][0] += 1
+                            bins[name][label][1] += _best_match(box, hand.side, found,
+                                                                same_side=True) is not None
     finally:
         detector.close()
     return bins
