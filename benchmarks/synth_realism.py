@@ -24,7 +24,12 @@ filmed by a crop window (``PAN_CROP_BOXES`` times the hand's box, the benchmark'
 panning until the hand has left through one border, for each border: the frames in order (the
 hand leaving, tracked) and reversed (the hand entering, found afresh), MediaPipe as above; its
 truth is the reference's landmarks moved into each crop, its box their box clipped to the image.
-Skipped when the stills are absent (``--real-stills 0`` skips it).
+Skipped when the stills are absent (``--real-stills 0`` skips it). Both tables give the share
+found regardless of side beside it: the real hands' side is MediaPipe's own on the whole photo,
+so only the synthetic hands' side is checked against the truth. Last, the whole hands by the
+side the camera sees (``VIEW_BINS``: the back of the hand, obliquely, edge-on or the palm): the
+synthetic ones overlapping no other, and the real frames showing the whole hand (its view from
+MediaPipe's metric landmarks on the whole photo).
 ``--save-preview`` writes a PNG grid of each sequence's middle frame: truth boxes green, detections
 red. Figures only; nothing is asserted.
 """
@@ -46,6 +51,8 @@ from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
+from infinihand_ros.mano.capsules import palm_axes
+from infinihand_ros.mano.capsules import PALM_JOINTS
 from infinihand_ros.synth.photo_streams import crop_stream
 from infinihand_ros.synth.sequence import HandTruth
 from infinihand_ros.synth.sequence import SynthConfig
@@ -66,6 +73,9 @@ TARGET_FOUND = 0.9
 TARGET_PCK = 0.8
 #: Bins of the number of a hand's joints inside the image (lowest, highest), whole hands first.
 JOINT_BINS = ((21, 21), (19, 20), (16, 18), (10, 15), (1, 9))
+#: Views of a hand: the cosine of its palm normal (palm side out) with the ray to its palm, at
+#: least the bin's lower bound (positive: the back of the hand faces the camera), back first.
+VIEW_BINS = (('back', 0.6), ('back, oblique', 0.3), ('edge-on', -0.3), ('palm', -1.0))
 #: The real reference's crop window, in multiples of the hand's landmark box (longer side), and
 #: the frames of a pan from the hand centred to the hand gone.
 PAN_CROP_BOXES = 3.5
@@ -89,8 +99,27 @@ def _joint_bin(count: int) -> str | None:
 
 
 def _bin_counts() -> dict[str, list[int]]:
-    """Return empty [hands, found] counts per joint bin."""
-    return {_bin_label(low, high): [0, 0] for low, high in JOINT_BINS}
+    """Return empty [hands, found, found regardless of side] counts per joint bin."""
+    return {_bin_label(low, high): [0, 0, 0] for low, high in JOINT_BINS}
+
+
+def _view_counts() -> dict[str, list[int]]:
+    """Return empty [hands, found, found regardless of side] counts per view."""
+    return {label: [0, 0, 0] for label, _ in VIEW_BINS}
+
+
+def _view(joints: np.ndarray, side: int, ray: np.ndarray) -> str:
+    """Return the ``VIEW_BINS`` label of the side of a hand seen along ``ray`` (3,).
+
+    ``joints`` (21, 3) may be in any frame whose axes are the camera's.
+    """
+    cosine = palm_axes(joints, side)[2] @ ray / np.linalg.norm(ray)
+    return next(label for label, low in VIEW_BINS if cosine >= low)
+
+
+def _truth_view(truth: HandTruth) -> str:
+    """Return the view of a truth hand from its camera (the ray to its palm's middle)."""
+    return _view(truth.joints_cam, truth.side, truth.joints_cam[list(PALM_JOINTS)].mean(axis=0))
 
 
 def _size(text: str) -> tuple[int, int]:
@@ -118,8 +147,11 @@ def _in_image(truth: HandTruth, width: int, height: int) -> np.ndarray:
 
 
 def _score_frame(frame: SynthFrame, detections: list[Detection2D], counts: dict,
-                 bins: dict[str, list[int]]) -> None:
-    """Add one frame's figures to ``counts``, and its hands overlapping no other to ``bins``."""
+                 bins: dict[str, list[int]], views: dict[str, list[int]]) -> None:
+    """Add one frame's figures to ``counts``, its hands overlapping no other to ``bins``.
+
+    Those also whole go to ``views`` too.
+    """
     height, width = frame.rgb.shape[:2]
     visible = [truth for truth in frame.hands if truth.visible]
     counts['frames'] += 1
@@ -130,15 +162,18 @@ def _score_frame(frame: SynthFrame, detections: list[Detection2D], counts: dict,
                         for other in visible if other is not truth)
         overlapping = whole and not alone
         match = _best_match(truth.box_xyxy, truth.side, detections, same_side=True)
+        any_side = _best_match(truth.box_xyxy, truth.side, detections,
+                               same_side=False) is not None
         label = _joint_bin(int(inside.sum()))
-        if alone and label is not None:
-            bins[label][0] += 1
-            bins[label][1] += match is not None
+        outcome = (1, match is not None, any_side)
+        for table, key in ((bins, label if alone else None),
+                           (views, _truth_view(truth) if alone and whole else None)):
+            if key is not None:
+                table[key] = [total + add for total, add in zip(table[key], outcome)]
         counts['visible'] += 1
         counts['visible_whole'] += whole
         counts['visible_overlapping'] += overlapping
-        counts['found_any'] += _best_match(truth.box_xyxy, truth.side, detections,
-                                           same_side=False) is not None
+        counts['found_any'] += any_side
         if match is None:
             continue
         counts['found'] += 1
@@ -200,7 +235,8 @@ def _grid(tiles: list[np.ndarray], columns: int = 4) -> np.ndarray:
 def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, list[np.ndarray]]:
     """Return the figures per seed and overall, and one annotated middle frame per seed.
 
-    ``report['joint_bins']`` holds [hands, found] per joint bin of the hands overlapping no other.
+    ``report['joint_bins']`` holds [hands, found, found regardless of side] per joint bin of the
+    hands overlapping no other, ``report['views']`` the same per view of the whole ones.
     """
     detector = MediaPipeDetector(MEDIAPIPE)
     synth = SynthConfig(width=size[0], height=size[1])
@@ -209,6 +245,7 @@ def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, lis
                                  'seeds': {}}
     total = dict.fromkeys(COUNTS, 0)
     bins = _bin_counts()
+    views = _view_counts()
     all_times: list[float] = []
     previews = []
     try:
@@ -222,7 +259,7 @@ def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, lis
                 found = detector.detect(frame.rgb, frame.index)
                 times.append(time.perf_counter() - start)
                 kept = [d for d in found if d.confidence >= MEDIAPIPE.min_confidence]
-                _score_frame(frame, kept, counts, bins)
+                _score_frame(frame, kept, counts, bins, views)
                 if frame.index == frames // 2:
                     previews.append(_draw(frame, kept))
             counts['scene_cuts'] = detector.scene_cuts - cuts
@@ -233,6 +270,7 @@ def run(seeds: list[int], frames: int, size: tuple[int, int]) -> tuple[dict, lis
         detector.close()
     report['overall'] = _figures(total, all_times)
     report['joint_bins'] = bins
+    report['views'] = views
     return report, previews
 
 
@@ -265,17 +303,25 @@ def crop_joints(joints: np.ndarray, photo_k: Intrinsics, crop_k: Intrinsics) -> 
 
 def real_reference(stills: Path, limit: int | None,
                    size: tuple[int, int]) -> dict[str, dict[str, list[int]]]:
-    """Return [hands, found] per joint bin for real hands leaving and entering the image."""
+    """Return [hands, found, found regardless of side] per joint bin and per view of real hands.
+
+    Per joint bin for the hands leaving and entering the image, per view for the frames that
+    show them whole (both pans). A real hand's side is MediaPipe's on the whole photo, its view
+    that of MediaPipe's metric landmarks there.
+    """
     photos = list(read_camera_frames(stills))[:limit]
     with MediaPipeKeypointSource(MediaPipeConfig(static_image_mode=True)) as reference:
         hands = [(photo, hand) for index, photo in enumerate(photos)
                  for hand in reference.detect(photo.rgb, index)
                  if hand.confidence >= MEDIAPIPE.min_confidence]
-    bins = {'leaving': _bin_counts(), 'entering': _bin_counts()}
+    bins = {'leaving': _bin_counts(), 'entering': _bin_counts(), 'views': _view_counts()}
     detector = MediaPipeDetector(MEDIAPIPE)
     try:
         for photo, hand in hands:
             photo_size = (photo.rgb.shape[1], photo.rgb.shape[0])
+            palm = hand.joints_2d[list(PALM_JOINTS)].mean(axis=0)
+            view = _view(hand.joints_metric, hand.side,
+                         np.linalg.solve(photo.intrinsics.matrix(), [*palm, 1.0]))
             for direction in PAN_BORDERS:
                 centres, width = pan_windows(landmark_box(hand.joints_2d), direction,
                                              photo_size, size)
@@ -293,10 +339,12 @@ def real_reference(stills: Path, limit: int | None,
                     for index, (crop, (label, box)) in enumerate(order):
                         found = [d for d in detector.detect(crop.rgb, index)
                                  if d.confidence >= MEDIAPIPE.min_confidence]
-                        if label is not None:
-                            bins[name][label][0] += 1
-                            bins[name][label][1] += _best_match(box, hand.side, found,
-                                                                same_side=True) is not None
+                        outcome = (1, _best_match(box, hand.side, found, True) is not None,
+                                   _best_match(box, hand.side, found, False) is not None)
+                        for table, key in ((bins[name], label),
+                                           (bins['views'], view if label == '21' else None)):
+                            if key is not None:
+                                table[key] = [a + b for a, b in zip(table[key], outcome)]
     finally:
         detector.close()
     return bins
@@ -308,8 +356,11 @@ def _percent(value: float | None) -> str:
 
 
 def _share(counts: list[int]) -> str:
-    """Format [hands, found] as 'found % (hands)'."""
-    return f'{_percent(counts[1] / counts[0]) if counts[0] else "-":>6} ({counts[0]:>4})'
+    """Format [hands, found, found regardless of side] as 'found % / any side % (hands)'."""
+    hands = max(counts[0], 1)
+    shares = ((_percent(counts[1] / hands), _percent(counts[2] / hands)) if counts[0]
+              else ('-', '-'))
+    return f'{shares[0]:>5} /{shares[1]:>5} ({counts[0]:>4})'
 
 
 def _print(report: dict) -> None:
@@ -334,15 +385,25 @@ def _print(report: dict) -> None:
           'the image), cut (the others), overlapping (whole, box overlapping another) and '
           'isolated hands (whole, not overlapping)')
     real = report.get('real_reference')
-    print('\nfound % (hands) by joints in the image, hands overlapping no other: synthetic, '
-          + ('and real stills panned out of view (leaving) and into it (entering)' if real
+    print('\nfound % / found regardless of side % (hands) by joints in the image, hands '
+          'overlapping no other: synthetic, '
+          + ('and real stills panned out of view (leaving) and into it (entering; their side: '
+             "MediaPipe's on the whole photo)" if real
              else 'no real reference (stills absent or --real-stills 0)'))
-    print(f"{'joints':>7}{'synthetic':>14}" + (f"{'real leaving':>15}{'real entering':>15}"
+    print(f"{'joints':>7}{'synthetic':>22}" + (f"{'real leaving':>23}{'real entering':>23}"
                                                if real else ''))
     for label, counts in report['joint_bins'].items():
-        print(f'{label:>7}{_share(counts):>14}' + (
-            f"{_share(real['leaving'][label]):>15}{_share(real['entering'][label]):>15}"
+        print(f'{label:>7}{_share(counts):>22}' + (
+            f"{_share(real['leaving'][label]):>23}{_share(real['entering'][label]):>23}"
             if real else ''))
+    print('\nfound % / found regardless of side % (hands) by the side of the hand the camera '
+          'sees (cosine of the palm normal with the ray: back >= 0.6 > oblique >= 0.3 > edge-on '
+          '>= -0.3 > palm), whole hands overlapping no other: synthetic'
+          + (', and the real frames showing the whole hand (both pans)' if real else ''))
+    print(f"{'view':>14}{'synthetic':>22}" + (f"{'real':>23}" if real else ''))
+    for label, counts in report['views'].items():
+        print(f'{label:>14}{_share(counts):>22}'
+              + (f"{_share(real['views'][label]):>23}" if real else ''))
 
 
 def main() -> int:

@@ -100,19 +100,43 @@ def test_synth_realism_reports_consistent_overall_figures() -> None:
     assert overall['false_positives'] >= 0 and overall['mediapipe_ms_per_frame'] > 0
     bins = report['joint_bins']
     assert list(bins) == ['21', '19-20', '16-18', '10-15', '1-9']
-    assert all(0 <= found <= hands for hands, found in bins.values())
+    assert all(0 <= found <= found_any <= hands for hands, found, found_any in bins.values())
     assert bins['21'][0] == overall['visible_whole'] - overall['visible_overlapping']
-    assert sum(hands for hands, _ in bins.values()) <= overall['visible']
+    assert sum(hands for hands, _, _ in bins.values()) <= overall['visible']
+    views = report['views']
+    assert list(views) == ['back', 'back, oblique', 'edge-on', 'palm']
+    assert [sum(column) for column in zip(*views.values())] == bins['21']
     if STILLS.is_dir():  # the real reference: the first two stills' hands panned out and in
         real = report['real_reference']
-        for pans in real.values():
+        assert list(real['views']) == list(views)
+        assert [sum(column) for column in zip(*real['views'].values())] == [
+            a + b for a, b in zip(real['leaving']['21'], real['entering']['21'])]
+        for pans in (real['leaving'], real['entering']):
             assert list(pans) == list(bins)
-            assert pans['21'][0] > 0 and all(0 <= found <= hands for hands, found in pans.values())
+            assert pans['21'][0] > 0
+            assert all(0 <= found <= found_any <= hands
+                       for hands, found, found_any in pans.values())
         # The same frames in reverse order: the same hands per bin.
-        assert ([hands for hands, _ in real['leaving'].values()]
-                == [hands for hands, _ in real['entering'].values()])
+        assert ([hands for hands, _, _ in real['leaving'].values()]
+                == [hands for hands, _, _ in real['entering'].values()])
     else:
         assert 'real_reference' not in report
+
+
+def test_synth_realism_sorts_hands_by_the_side_the_camera_sees() -> None:
+    """A hand showing the camera its palm, its back or its edge falls in that view bin."""
+    from types import SimpleNamespace
+    from infinihand_ros.core.hand_conventions import SIDES
+    from infinihand_ros.mano.builtin import canonical_joints
+    from scipy.spatial.transform import Rotation
+    realism = _benchmark('synth_realism')
+    for side in SIDES:
+        joints = canonical_joints(side)  # fingers along x, the palm facing -y
+        for degrees, view in ((90.0, 'palm'), (-90.0, 'back'), (-25.0, 'back, oblique'),
+                              (0.0, 'edge-on')):
+            turned = Rotation.from_euler('x', degrees, degrees=True).apply(joints)
+            truth = SimpleNamespace(joints_cam=turned + [0.0, 0.0, 0.5], side=side)
+            assert realism._truth_view(truth) == view, (side, degrees)
 
 
 def test_synth_realism_pans_move_the_hand_out_through_one_border() -> None:
