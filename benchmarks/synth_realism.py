@@ -357,10 +357,9 @@ def _percent(value: float | None) -> str:
 
 def _share(counts: list[int]) -> str:
     """Format [hands, found, found regardless of side] as 'found % / any side % (hands)'."""
-    hands = max(counts[0], 1)
-    shares = ((_percent(counts[1] / hands), _percent(counts[2] / hands)) if counts[0]
-              else ('-', '-'))
-    return f'{shares[0]:>5} /{shares[1]:>5} ({counts[0]:>4})'
+    hands, found, found_any = counts
+    shares = (_percent(found / hands), _percent(found_any / hands)) if hands else ('-', '-')
+    return f'{shares[0]:>5} /{shares[1]:>5} ({hands:>4})'
 
 
 def _print(report: dict) -> None:
