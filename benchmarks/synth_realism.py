@@ -14,7 +14,7 @@ all lie in the image, cut hands the others; overlapping hands are whole hands wh
 another visible hand's, isolated hands the whole ones that overlap no other. PCK@0.2 over the found
 hands: the share of their truth joints inside the image (and in front of the camera) whose
 detection lies within 0.2 of the truth box's longer side. A detection overlapping no visible truth
-hand (either side) is a false positive. Prints per seed and overall, beside the targets of issue 39
+hand (either side) is a false positive. Prints per seed and overall, beside the realism targets
 (found >= 90 %, PCK@0.2 >= 80 %), with MediaPipe's median ms/frame.
 
 Then the real reference: the found share by the number of joints in the image, for the synthetic
@@ -108,6 +108,12 @@ def _view_counts() -> dict[str, list[int]]:
     return {label: [0, 0, 0] for label, _ in VIEW_BINS}
 
 
+def _tally(table: dict[str, list[int]], key: str | None, outcome: tuple[int, bool, bool]) -> None:
+    """Add (1, found, found regardless of side) to ``table[key]``; nothing for a None key."""
+    if key is not None:
+        table[key] = [total + add for total, add in zip(table[key], outcome)]
+
+
 def _view(joints: np.ndarray, side: int, ray: np.ndarray) -> str:
     """Return the ``VIEW_BINS`` label of the side of a hand seen along ``ray`` (3,).
 
@@ -166,10 +172,8 @@ def _score_frame(frame: SynthFrame, detections: list[Detection2D], counts: dict,
                                same_side=False) is not None
         label = _joint_bin(int(inside.sum()))
         outcome = (1, match is not None, any_side)
-        for table, key in ((bins, label if alone else None),
-                           (views, _truth_view(truth) if alone and whole else None)):
-            if key is not None:
-                table[key] = [total + add for total, add in zip(table[key], outcome)]
+        _tally(bins, label if alone else None, outcome)
+        _tally(views, _truth_view(truth) if alone and whole else None, outcome)
         counts['visible'] += 1
         counts['visible_whole'] += whole
         counts['visible_overlapping'] += overlapping
@@ -341,10 +345,8 @@ def real_reference(stills: Path, limit: int | None,
                                  if d.confidence >= MEDIAPIPE.min_confidence]
                         outcome = (1, _best_match(box, hand.side, found, True) is not None,
                                    _best_match(box, hand.side, found, False) is not None)
-                        for table, key in ((bins[name], label),
-                                           (bins['views'], view if label == '21' else None)):
-                            if key is not None:
-                                table[key] = [a + b for a, b in zip(table[key], outcome)]
+                        _tally(bins[name], label, outcome)
+                        _tally(bins['views'], view if label == '21' else None, outcome)
     finally:
         detector.close()
     return bins
