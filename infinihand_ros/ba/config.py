@@ -70,6 +70,12 @@ class SolverConfig:
         initial_damping: LM damping (Marquardt, relative to the diagonal) at the start.
         min_relative_decrease: stop when the cost decreases by less than this fraction.
         min_inverse_depth: inverse depths are kept above this (1/m).
+        lens_focal_sigma: prior sigma of the shared lens's log focal scale around the
+            keyframes' median focal length; 0 holds the focal length.
+        lens_k1_sigma: prior sigma of the shared lens's radial coefficient k1 around 0 (a real
+            lens the intrinsics do not describe); 0 holds the pinhole.
+        holdout_every: every n-th track is kept out of the fit; a result is used only where it
+            fits those tracks better than its start (``ba.validation``); 0: no check.
 
     """
 
@@ -83,12 +89,20 @@ class SolverConfig:
     initial_damping: float = 1e-4
     min_relative_decrease: float = 1e-4
     min_inverse_depth: float = 1e-3
+    lens_focal_sigma: float = 0.1
+    lens_k1_sigma: float = 0.2
+    holdout_every: int = 5
 
     def __post_init__(self) -> None:
         owner = 'ba.solver'
         _require_finite_fields(owner, self)
         require_at_least(owner, 0, irls_iterations=self.irls_iterations,
-                         min_relative_decrease=self.min_relative_decrease)
+                         min_relative_decrease=self.min_relative_decrease,
+                         lens_focal_sigma=self.lens_focal_sigma,
+                         lens_k1_sigma=self.lens_k1_sigma, holdout_every=self.holdout_every)
+        if self.holdout_every == 1:
+            raise ConfigError(f'{owner}.holdout_every: 1 would hold out every track; use 0 (no '
+                              'check) or at least 2')
         require_at_least(owner, 1, max_iterations=self.max_iterations)
         require_positive(owner, huber_px=self.huber_px, gate_px=self.gate_px,
                          depth_prior_rel_sigma=self.depth_prior_rel_sigma,

@@ -188,11 +188,14 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
     inv_depth = 1.0 / depth[usable]
     initial = np.asarray(T_world_cam, dtype=np.float64)
     pairs = np.c_[np.arange(len(keyframes) - 1), np.arange(1, len(keyframes))]
+    # One lens for the selection: the keyframes' median pinhole, refined by the solver.
+    lens = np.median(np.stack([k.intrinsics.matrix() for k in keyframes]), axis=0)
     return BAProblem(
         T_world_cam=initial,
-        intrinsics=np.stack([k.intrinsics.matrix() for k in keyframes]),
+        intrinsics=np.broadcast_to(lens, (len(keyframes), 3, 3)).copy(),
         fixed=np.asarray(fixed, dtype=bool), host=host_frame[usable],
         host_xy=host_xy[usable], inv_depth=inv_depth, prior_inv_depth=inv_depth,
         prior_sigma=solver.depth_prior_rel_sigma * inv_depth, obs_track=new_id[track[observed]],
         obs_frame=frame[observed], obs_xy=xy[observed], obs_weight=np.ones(observed.sum()),
-        prior_pairs=pairs, prior_T_rel=np.linalg.inv(initial[pairs[:, 0]]) @ initial[pairs[:, 1]])
+        prior_pairs=pairs, prior_T_rel=np.linalg.inv(initial[pairs[:, 0]]) @ initial[pairs[:, 1]],
+        lens_sigma=np.array([solver.lens_focal_sigma, solver.lens_k1_sigma]))

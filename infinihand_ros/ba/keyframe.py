@@ -61,6 +61,12 @@ class BAOutput:
         seconds: wall time of the call (correspondences + solve).
         cpu_seconds: CPU time of the calling thread during the call (what the call itself cost,
             whatever else the machine runs).
+        accepted: the refinement passed its held-out check (``ba.validation``); when it did
+            not, ``T_world_cam_refined`` are the poses the call started from.
+        held_out_costs: Huber cost per held-out observation (start, refined), px^2; NaN
+            without a check.
+        focal_px: the refined shared focal length of the first keyframe (px).
+        k1: the refined shared radial distortion coefficient.
 
     """
 
@@ -73,3 +79,7 @@ class BAOutput:
     num_inliers: int
     seconds: float
     cpu_seconds: float
+    accepted: bool = True
+    held_out_costs: tuple[float, float] = (float('nan'), float('nan'))
+    focal_px: float = float('nan')
+    k1: float = 0.0

@@ -6,6 +6,8 @@ keyframes. Poses are camera-to-world (``T_world_cam``), 4x4, metres.
 """
 
 from dataclasses import dataclass
+from dataclasses import field
+from dataclasses import replace
 
 from infinihand_ros.core.errors import InputError
 import numpy as np
@@ -30,6 +32,10 @@ class BAProblem:
         obs_weight: (M,) confidence weight of each observation (>= 0).
         prior_pairs: (R, 2) int keyframe pairs (i, j) with a relative-pose prior.
         prior_T_rel: (R, 4, 4) measured ``T_cam_i_cam_j`` of each pair.
+        lens_sigma: (2,) prior sigmas of the shared lens's log focal scale and radial k1
+            around ``lens``; 0 holds that lens unknown fixed.
+        lens: (2,) the shared lens to start from and centre its prior on (log focal scale of
+            ``intrinsics``, radial k1; ``ba.costs``); zeros: the plain pinhole ``intrinsics``.
 
     """
 
@@ -47,6 +53,8 @@ class BAProblem:
     obs_weight: np.ndarray
     prior_pairs: np.ndarray
     prior_T_rel: np.ndarray
+    lens_sigma: np.ndarray = field(default_factory=lambda: np.zeros(2))
+    lens: np.ndarray = field(default_factory=lambda: np.zeros(2))
 
     def __post_init__(self) -> None:
         num_frames = len(self.T_world_cam)
@@ -64,6 +72,8 @@ class BAProblem:
             'obs_xy': (self.obs_xy, (num_obs, 2)),
             'obs_weight': (self.obs_weight, (num_obs,)),
             'prior_T_rel': (self.prior_T_rel, (len(self.prior_pairs), 4, 4)),
+            'lens_sigma': (self.lens_sigma, (2,)),
+            'lens': (self.lens, (2,)),
         }
         for name, (array, shape) in shapes.items():
             if np.shape(array) != shape:
@@ -73,6 +83,9 @@ class BAProblem:
         self._check_indices(num_frames, num_tracks)
         if np.any(~(self.inv_depth > 0)):
             raise InputError('BA problem: initial inverse depths must be positive and finite')
+        if not np.all(np.isfinite(self.lens_sigma) & (np.asarray(self.lens_sigma) >= 0)):
+            raise InputError(f'BA problem: lens_sigma must be finite and >= 0, got '
+                             f'{self.lens_sigma}')
         if not np.any(self.fixed):
             raise InputError('BA problem: no fixed pose; fix at least one keyframe (the gauge)')
 
@@ -93,6 +106,25 @@ class BAProblem:
         """Return the number of keyframes F."""
         return len(self.T_world_cam)
 
+    def tracks(self, keep: np.ndarray) -> 'BAProblem':
+        """Return the problem over the tracks where ``keep`` (P,) is True, with their views."""
+        keep = np.asarray(keep, dtype=bool)
+        new_id = np.full(len(keep), -1)
+        new_id[keep] = np.arange(np.count_nonzero(keep))
+        observed = keep[self.obs_track]
+        return replace(self, host=self.host[keep], host_xy=self.host_xy[keep],
+                       inv_depth=self.inv_depth[keep],
+                       prior_inv_depth=self.prior_inv_depth[keep],
+                       prior_sigma=self.prior_sigma[keep],
+                       obs_track=new_id[self.obs_track[observed]],
+                       obs_frame=self.obs_frame[observed], obs_xy=self.obs_xy[observed],
+                       obs_weight=self.obs_weight[observed])
+
+    @property
+    def lens_free(self) -> np.ndarray:
+        """Return (2,) bool: which lens unknowns (log focal scale, k1) are refined."""
+        return np.asarray(self.lens_sigma) > 0
+
     @property
     def has_depth_prior(self) -> bool:
         """Return whether any track carries a depth prior."""
@@ -110,6 +142,7 @@ class BAResult:
         initial_cost: cost before the first iteration (robust, with the priors).
         final_cost: plain least-squares cost over the inliers at the end.
         iterations: LM iterations run (IRLS and plain together).
+        lens: (2,) refined log focal scale and radial k1 (0 where held).
 
     """
 
@@ -119,3 +152,4 @@ class BAResult:
     initial_cost: float
     final_cost: float
     iterations: int
+    lens: np.ndarray = field(default_factory=lambda: np.zeros(2))

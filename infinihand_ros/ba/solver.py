@@ -2,10 +2,12 @@
 
 Cost: confidence-weighted reprojection errors (Huber IRLS first, then the observations above the
 gate are dropped and plain least squares follows), plus a depth prior per track (it fixes the
-monocular scale) and optional loose relative-pose priors between keyframe pairs. The normal
-equations are summed per observation into dense arrays (6F pose unknowns for F keyframes, and
-a (6F, P) pose/depth block); each inverse depth is a 1x1 block, so the Schur complement onto the
-poses is element-wise and the reduced system is solved by Cholesky.
+monocular scale), optional loose relative-pose priors between keyframe pairs and, where the
+problem frees it, a prior on the shared lens (focal scale and radial k1; ``ba.costs``). The
+normal equations are summed per observation into dense arrays (6F pose unknowns for F keyframes
+and the lens's 2 after them, and a (6F + 2, P) pose/depth block); each inverse depth is a 1x1
+block, so the Schur complement onto the poses is element-wise and the reduced system is solved
+by Cholesky.
 """
 
 from dataclasses import dataclass
@@ -40,21 +42,20 @@ POSE_DOF: Final = 6
 class _Normal:
     """Normal equations ``H x = g`` split into pose (p) and inverse-depth (d) parts."""
 
-    h_pp: np.ndarray  # (6F, 6F)
-    h_pd: np.ndarray  # (6F, P)
+    h_pp: np.ndarray  # (6F + 2, 6F + 2): poses, then the lens
+    h_pd: np.ndarray  # (6F + 2, P)
     h_dd: np.ndarray  # (P,) diagonal
-    g_p: np.ndarray  # (6F,)
+    g_p: np.ndarray  # (6F + 2,)
     g_d: np.ndarray  # (P,)
 
 
 @dataclass(frozen=True)
 class _Layout:
-    """Per-problem constants: host rays and where each term lands in the normal equations."""
+    """Per-problem constants: where each term lands in the normal equations."""
 
-    rays: np.ndarray  # (P, 3) host rays
-    obs_columns: np.ndarray  # (M, 12) pose unknowns of each observation (host, observer)
-    obs_flat: np.ndarray  # (M * 144,) places of their 12x12 blocks in the raveled h_pp
-    depth_flat: np.ndarray  # (M * 12,) places of their pose/depth terms in the raveled h_pd
+    obs_columns: np.ndarray  # (M, 14) unknowns of each observation (host, observer, lens)
+    obs_flat: np.ndarray  # (M * 196,) places of their 14x14 blocks in the raveled h_pp
+    depth_flat: np.ndarray  # (M * 14,) places of their pose/depth terms in the raveled h_pd
     prior_columns: np.ndarray  # (R, 12) pose unknowns of each relative-pose prior
     prior_flat: np.ndarray  # (R * 144,)
 
@@ -78,7 +79,8 @@ class BundleAdjuster:
             raise InputError('BA problem: no depth prior and one fixed pose leave the scale free; '
                              'give depth priors or fix the two oldest keyframes')
         rot, trans = lie.inverse(problem.T_world_cam[:, :3, :3], problem.T_world_cam[:, :3, 3])
-        state = costs.PoseState(rot, trans, problem.inv_depth.astype(np.float64))
+        state = costs.PoseState(rot, trans, problem.inv_depth.astype(np.float64),
+                                np.array(problem.lens, dtype=np.float64))
         layout = _make_layout(problem)
         weights = problem.obs_weight.astype(np.float64)
         initial_cost = self._cost(problem, layout, state, weights, robust=True)
@@ -97,7 +99,7 @@ class BundleAdjuster:
         T_world_cam = geometry.make_transform(rot_wc, t_wc)
         T_world_cam[problem.fixed] = problem.T_world_cam[problem.fixed]
         return BAResult(T_world_cam, state.inv_depth, inliers, initial_cost, final_cost,
-                        irls_iterations + ls_iterations)
+                        irls_iterations + ls_iterations, state.lens.copy())
 
     def _run_lm(self, problem: BAProblem, layout: _Layout, state: costs.PoseState,
                 weights: np.ndarray, robust: bool, iterations: int) -> tuple[costs.PoseState, int]:
@@ -124,10 +126,12 @@ class BundleAdjuster:
 
     def _reprojection(self, problem: BAProblem, layout: _Layout, state: costs.PoseState,
                       with_jacobians: bool) -> costs.Reprojection:
-        """Reprojection residuals (and Jacobians) of every observation."""
-        return costs.reprojection(state, layout.rays, problem.host, problem.obs_track,
+        """Reprojection residuals (and Jacobians, the lens's where it is free)."""
+        rays = costs.host_rays(problem.intrinsics, problem.host, problem.host_xy, state.lens)
+        return costs.reprojection(state, rays, problem.host, problem.obs_track,
                                   problem.obs_frame, problem.obs_xy, problem.intrinsics,
-                                  with_jacobians)
+                                  with_jacobians,
+                                  problem.host_xy if problem.lens_free.any() else None)
 
     def _pose_prior_on(self, problem: BAProblem) -> bool:
         """Return whether relative-pose priors are part of the cost."""
@@ -143,6 +147,9 @@ class BundleAdjuster:
         depth_residual = ((state.inv_depth - problem.prior_inv_depth)[has_prior]
                           / problem.prior_sigma[has_prior])
         total += float(np.sum(depth_residual**2))
+        free = problem.lens_free
+        total += float(np.sum(((state.lens - problem.lens)[free]
+                               / problem.lens_sigma[free])**2))
         if self._pose_prior_on(problem):
             residual, _, _ = costs.pose_prior(state, problem.prior_pairs, problem.prior_T_rel,
                                               self.config.rel_pose_sigma_m,
@@ -158,8 +165,11 @@ class BundleAdjuster:
             error = np.linalg.norm(reproj.residual, axis=-1)
             weights = weights * costs.huber_weight(error, self.config.huber_px)
         sqrt_w = np.sqrt(weights)[:, None]
-        num_tracks, size = len(problem.host), POSE_DOF * problem.num_frames
-        jac = np.concatenate([reproj.jac_host, reproj.jac_target], axis=-1) * sqrt_w[..., None]
+        num_tracks, size = len(problem.host), _size(problem)
+        jac_lens = (reproj.jac_lens if problem.lens_free.any()
+                    else np.zeros(reproj.jac_host.shape[:2] + (costs.LENS_DOF,)))
+        jac = (np.concatenate([reproj.jac_host, reproj.jac_target, jac_lens], axis=-1)
+               * sqrt_w[..., None])
         residual = reproj.residual * sqrt_w
         h_pp, g_p = _pose_blocks(layout.obs_columns, layout.obs_flat, jac, residual, size)
         jac_depth = reproj.jac_inv_depth * sqrt_w
@@ -182,12 +192,17 @@ class BundleAdjuster:
         inv_var = np.where(has_prior, 1.0 / problem.prior_sigma**2, 0.0)
         h_dd += inv_var
         g_d -= np.where(has_prior, (state.inv_depth - problem.prior_inv_depth) * inv_var, 0.0)
+        lens = slice(size - costs.LENS_DOF, size)
+        lens_inv_var = np.zeros(costs.LENS_DOF)
+        lens_inv_var[problem.lens_free] = 1.0 / problem.lens_sigma[problem.lens_free]**2
+        h_pp[lens, lens] += np.diag(lens_inv_var)
+        g_p[lens] -= lens_inv_var * (state.lens - problem.lens)
         return _Normal(h_pp, h_pd, h_dd, g_p, g_d)
 
     def _step(self, problem: BAProblem, state: costs.PoseState, normal: _Normal,
               damping: float) -> costs.PoseState | None:
         """Solve the damped system by the Schur complement; None when it is not positive."""
-        free = np.repeat(~problem.fixed, POSE_DOF)
+        free = _free_unknowns(problem)
         h_dd = normal.h_dd * (1.0 + damping) + DEPTH_DIAGONAL_FLOOR
         h_pp = normal.h_pp[np.ix_(free, free)]
         h_pp[np.diag_indices_from(h_pp)] *= 1.0 + damping
@@ -198,23 +213,42 @@ class BundleAdjuster:
         reduced = h_pp - (scaled @ h_pd.T).numpy()
         rhs = normal.g_p[free] - (scaled @ torch.from_numpy(normal.g_d)).numpy()
         try:
-            delta_free = linalg.cho_solve(linalg.cho_factor(reduced), rhs)
+            delta_free = (linalg.cho_solve(linalg.cho_factor(reduced), rhs) if len(rhs)
+                          else np.zeros(0))
         except linalg.LinAlgError:
             return None
-        delta_pose = np.zeros(POSE_DOF * problem.num_frames)
-        delta_pose[free] = delta_free
+        delta = np.zeros(_size(problem))
+        delta[free] = delta_free
         delta_depth = (normal.g_d - (h_pd.T @ torch.from_numpy(delta_free)).numpy()) / h_dd
+        poses = POSE_DOF * problem.num_frames
         rotation, translation = lie.retract(state.rotation, state.translation,
-                                            delta_pose.reshape(-1, POSE_DOF))
+                                            delta[:poses].reshape(-1, POSE_DOF))
         inv_depth = np.maximum(state.inv_depth + delta_depth, self.config.min_inverse_depth)
-        return replace(state, rotation=rotation, translation=translation, inv_depth=inv_depth)
+        return replace(state, rotation=rotation, translation=translation, inv_depth=inv_depth,
+                       lens=state.lens + delta[poses:])
 
 
-def _pose_columns(first: np.ndarray, second: np.ndarray) -> np.ndarray:
-    """Return the unknowns (N, 12) of two poses per item: 6 of ``first``, then 6 of ``second``."""
+def _size(problem: BAProblem) -> int:
+    """Return the number of unknowns in the pose system: 6 per keyframe, then the lens."""
+    return POSE_DOF * problem.num_frames + costs.LENS_DOF
+
+
+def _free_unknowns(problem: BAProblem) -> np.ndarray:
+    """Return (6F + 2,) bool: the free poses' unknowns and the free lens unknowns."""
+    return np.r_[np.repeat(~problem.fixed, POSE_DOF), problem.lens_free]
+
+
+def _pose_columns(first: np.ndarray, second: np.ndarray,
+                  lens: np.ndarray | None = None) -> np.ndarray:
+    """Return the unknowns (N, 12) of two poses per item: 6 of ``first``, then 6 of ``second``.
+
+    With ``lens`` (the lens unknowns' columns), they follow: (N, 12 + 2).
+    """
     offsets = np.arange(POSE_DOF)
-    return np.concatenate([POSE_DOF * first[:, None] + offsets,
-                           POSE_DOF * second[:, None] + offsets], axis=1)
+    parts = [POSE_DOF * first[:, None] + offsets, POSE_DOF * second[:, None] + offsets]
+    if lens is not None:
+        parts.append(np.broadcast_to(lens, (len(first), len(lens))))
+    return np.concatenate(parts, axis=1)
 
 
 def _flat_blocks(columns: np.ndarray, size: int) -> np.ndarray:
@@ -223,12 +257,12 @@ def _flat_blocks(columns: np.ndarray, size: int) -> np.ndarray:
 
 
 def _make_layout(problem: BAProblem) -> _Layout:
-    """Return the problem's host rays and normal-equation indices (fixed during a solve)."""
-    size, num_tracks = POSE_DOF * problem.num_frames, len(problem.host)
-    obs_columns = _pose_columns(problem.host[problem.obs_track], problem.obs_frame)
+    """Return the problem's normal-equation indices (fixed during a solve)."""
+    size, num_tracks = _size(problem), len(problem.host)
+    lens = np.arange(size - costs.LENS_DOF, size)
+    obs_columns = _pose_columns(problem.host[problem.obs_track], problem.obs_frame, lens)
     prior_columns = _pose_columns(problem.prior_pairs[:, 0], problem.prior_pairs[:, 1])
-    return _Layout(costs.host_rays(problem.intrinsics, problem.host, problem.host_xy),
-                   obs_columns, _flat_blocks(obs_columns, size),
+    return _Layout(obs_columns, _flat_blocks(obs_columns, size),
                    (obs_columns * num_tracks + problem.obs_track[:, None]).ravel(),
                    prior_columns, _flat_blocks(prior_columns, size))
 
@@ -242,7 +276,7 @@ def _pose_blocks(columns: np.ndarray, flat: np.ndarray, jac: np.ndarray, residua
         flat: (N * 144,) their blocks' places (from ``_flat_blocks``).
         jac: (N, R, 12) whitened Jacobians of each item's R residuals w.r.t. those unknowns.
         residual: (N, R) whitened residuals.
-        size: number of pose unknowns (6F).
+        size: number of unknowns in the pose system (6F + 2).
 
     Returns:
         ``J^T J`` (size, size) and ``-J^T r`` (size,).

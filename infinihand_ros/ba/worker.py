@@ -35,6 +35,8 @@ from infinihand_ros.ba.process import BAProcessCrashError
 from infinihand_ros.ba.process import BAProcessError
 from infinihand_ros.ba.process import RunFunction
 from infinihand_ros.ba.solver import BundleAdjuster
+from infinihand_ros.ba.validation import check_refinement
+from infinihand_ros.ba.validation import split_holdout
 from infinihand_ros.ba.worker_statistics import WorkerState
 from infinihand_ros.ba.worker_statistics import WorkerStatistics
 from infinihand_ros.core.errors import InfiniHandError
@@ -121,14 +123,29 @@ def run_request(request: BARequest, config: BAConfig,
     finally:
         if cache is not None:
             cache.retain(request.retained_ids)
-    result = BundleAdjuster(config.solver).solve(problem)
+    every = config.solver.holdout_every
+    fit, held = split_holdout(problem, every) if every else (problem, None)
+    result = BundleAdjuster(config.solver).solve(fit)
+    check = (None if held is None
+             else check_refinement(held, result.T_world_cam, result.lens, config.solver))
+    accepted = check is None or check.accepted
+    if not accepted:
+        logger.info('BA over frames %s rejected: held-out cost %.3f -> %.3f px^2; the poses '
+                    'it started from stand', [k.frame_id for k in request.keyframes],
+                    check.initial_cost, check.refined_cost)
     return BAOutput(
         frame_ids=np.array([k.frame_id for k in request.keyframes]),
         timestamps_ns=np.array([k.timestamp_ns for k in request.keyframes]),
         T_world_cam_raw=np.stack([k.T_world_cam for k in request.keyframes]),
-        T_world_cam_refined=result.T_world_cam, num_tracks=len(problem.host),
-        num_observations=len(problem.obs_track), num_inliers=int(result.inliers.sum()),
-        seconds=time.perf_counter() - start, cpu_seconds=time.thread_time() - start_cpu)
+        T_world_cam_refined=(result.T_world_cam if accepted
+                             else np.asarray(request.T_world_cam, dtype=np.float64)),
+        num_tracks=len(fit.host), num_observations=len(fit.obs_track),
+        num_inliers=int(result.inliers.sum()), seconds=time.perf_counter() - start,
+        cpu_seconds=time.thread_time() - start_cpu, accepted=accepted,
+        held_out_costs=((np.nan, np.nan) if check is None
+                        else (check.initial_cost, check.refined_cost)),
+        focal_px=float(problem.intrinsics[0, 0, 0] * np.exp(result.lens[0])),
+        k1=float(result.lens[1]))
 
 
 class BundleAdjustmentWorker:
@@ -167,7 +184,7 @@ class BundleAdjustmentWorker:
         self._busy = False
         self._corrections = CorrectionTrack()
         self._results: queue.Queue[BAOutput] = queue.Queue()
-        self._counts = dict.fromkeys(('submitted', 'done', 'dropped', 'failed',
+        self._counts = dict.fromkeys(('submitted', 'done', 'dropped', 'failed', 'rejected',
                                       'callback_errors'), 0)
         self._last_error: str | None = None
         self._failed_frames: set[int] = set()
@@ -204,7 +221,9 @@ class BundleAdjustmentWorker:
 
     @property
     def failed_frame_ids(self) -> frozenset[int]:
-        """Return the frames whose last BA call failed (the newest ``failed_frames_kept``).
+        """Return the frames whose last BA call failed or was rejected by its held-out check.
+
+        The newest ``failed_frames_kept`` of them.
 
         A frame refined by a later call is no longer among them.
         """
@@ -409,7 +428,11 @@ class BundleAdjustmentWorker:
             return not isinstance(exc, BAProcessCrashError)
         with self._wake:
             self._counts['done'] += 1
-            self._failed_frames.difference_update(frame_ids)
+            if output.accepted:
+                self._failed_frames.difference_update(frame_ids)
+            else:
+                self._counts['rejected'] += 1
+                self._remember_failed(frame_ids)
         self._results.put(output)
         if self._callback is not None:
             try:
@@ -435,7 +458,11 @@ class BundleAdjustmentWorker:
         with self._wake:
             self._counts['failed'] += 1
             self._last_error = f'{type(exc).__name__}: {exc}'
-            self._failed_frames.update(frame_ids)
-            excess = len(self._failed_frames) - self._failed_frames_kept
-            if excess > 0:
-                self._failed_frames.difference_update(sorted(self._failed_frames)[:excess])
+            self._remember_failed(frame_ids)
+
+    def _remember_failed(self, frame_ids: list[int]) -> None:
+        """Keep frames whose last call gave no refinement (the newest; caller holds the lock)."""
+        self._failed_frames.update(frame_ids)
+        excess = len(self._failed_frames) - self._failed_frames_kept
+        if excess > 0:
+            self._failed_frames.difference_update(sorted(self._failed_frames)[:excess])

@@ -25,6 +25,7 @@ class WorkerStatistics:
         done: calls that gave a result.
         dropped: queued selections dropped because the worker was behind (or closed early).
         failed: calls that gave no result (the error is logged; poses stay uncorrected).
+        rejected: calls done whose refinement failed its held-out check (their start stood).
         callback_errors: results whose callback raised (the result still counts as done).
         process_starts: BA processes started (more than one: a process died and was replaced).
         last_error: the last failure's message (a call, the BA process or a callback), or None.
@@ -36,6 +37,7 @@ class WorkerStatistics:
     done: int
     dropped: int
     failed: int
+    rejected: int
     callback_errors: int
     process_starts: int
     last_error: str | None

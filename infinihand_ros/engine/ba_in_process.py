@@ -84,7 +84,7 @@ class InProcessBA:
         """
         worker = self.ba.worker.statistics
         return {'state': str(worker.state), 'submitted': worker.submitted, 'done': worker.done,
-                'dropped': worker.dropped, 'failed': worker.failed,
+                'dropped': worker.dropped, 'failed': worker.failed, 'rejected': worker.rejected,
                 'callback_errors': worker.callback_errors, 'last_error': worker.last_error,
                 'folded_in': self.calls_done}
 

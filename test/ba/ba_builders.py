@@ -36,22 +36,27 @@ def make_problem(rng: np.random.Generator, num_frames: int = 6, num_tracks: int 
                  pixel_noise: float = 0.5, pose_noise: float = 0.02,
                  depth_prior_sigma: float = 0.05,
                  with_depth_prior: bool = True, num_fixed: int = 1,
-                 with_pose_prior: bool = False) -> SyntheticBA:
+                 with_pose_prior: bool = False,
+                 lens: tuple[float, float] = (0.0, 0.0)) -> SyntheticBA:
     """Draw a scene 2-6 m in front of the cameras and a BA problem with perturbed poses.
 
     Observations carry Gaussian pixel noise; the initial poses (except the fixed ones) get
     ``pose_noise`` rad / m of noise; initial inverse depths are 10 % off; the depth prior (when
-    given) is the truth with ``depth_prior_sigma`` relative noise.
+    given) is the truth with ``depth_prior_sigma`` relative noise. The pixels are seen through
+    the true ``lens`` (log focal scale of ``K``, radial k1; ``ba.costs``); the problem's
+    intrinsics are the plain ``K``.
     """
     poses = true_poses(rng, num_frames)
     host = rng.integers(0, num_frames, num_tracks)
-    host_xy = rng.uniform([20, 20], [WIDTH - 20, HEIGHT - 20], (num_tracks, 2))
+    normal = (rng.uniform([20, 20], [WIDTH - 20, HEIGHT - 20], (num_tracks, 2))
+              - K[:2, 2]) / np.diag(K)[:2]
+    host_xy = _through_lens(normal, lens)
     depth = rng.uniform(2.0, 6.0, num_tracks)
-    rays = np.c_[(host_xy - K[:2, 2]) / np.diag(K)[:2], np.ones(num_tracks)]
+    rays = np.c_[normal, np.ones(num_tracks)]
     points_world = geometry.transform_points(poses[host], (rays * depth[:, None])[:, None])[:, 0]
     points_cam = geometry.transform_points(geometry.invert_transform(poses)[:, None],
                                            points_world[None, :, None])[..., 0, :]  # (F, P, 3)
-    pixels = geometry.project_points(points_cam, K)
+    pixels = _through_lens(points_cam[..., :2] / points_cam[..., 2:], lens)
     visible = ((points_cam[..., 2] > 0.1) & (pixels[..., 0] > 0) & (pixels[..., 0] < WIDTH)
                & (pixels[..., 1] > 0) & (pixels[..., 1] < HEIGHT))
     visible[host, np.arange(num_tracks)] = False
@@ -75,6 +80,13 @@ def make_problem(rng: np.random.Generator, num_frames: int = 6, num_tracks: int 
         obs_xy=obs_xy, obs_weight=np.ones(len(obs_track)), prior_pairs=pairs,
         prior_T_rel=inv_noisy[pairs[:, 0]] @ noisy[pairs[:, 1]])
     return SyntheticBA(problem, poses, 1.0 / depth)
+
+
+def _through_lens(normal: np.ndarray, lens: tuple[float, float]) -> np.ndarray:
+    """Return the pixels (..., 2) of normalised points (..., 2) seen through ``lens`` and K."""
+    log_focal, k1 = lens
+    radial = 1.0 + k1 * np.sum(normal**2, axis=-1, keepdims=True)
+    return normal * radial * np.diag(K)[:2] * np.exp(log_focal) + K[:2, 2]
 
 
 def synth_keyframe(frame: SynthFrame, T_world_cam: np.ndarray | None = None) -> KeyframeInput:

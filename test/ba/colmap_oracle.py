@@ -27,18 +27,27 @@ def _add_images(pycolmap: ModuleType, reconstruction, problem: BAProblem) -> lis
     return tracks_per_image
 
 
-def colmap_bundle_adjust(pycolmap: ModuleType, problem: BAProblem, k: np.ndarray) -> np.ndarray:
-    """Run pycolmap's BA (fixed intrinsics ``k``, fixed poses as in ``problem``).
+def colmap_bundle_adjust(pycolmap: ModuleType, problem: BAProblem, k: np.ndarray,
+                         refine_lens: bool = False
+                         ) -> np.ndarray | tuple[np.ndarray, float, float]:
+    """Run pycolmap's BA (fixed poses as in ``problem``).
+
+    Without ``refine_lens`` the intrinsics ``k`` are held (a PINHOLE camera). With it, one
+    SIMPLE_RADIAL camera (focal ``k[0, 0]``, k1 0 to start) is refined with the poses.
 
     Returns:
-        (F, 4, 4) refined camera-to-world poses.
+        (F, 4, 4) refined camera-to-world poses; with ``refine_lens`` also the refined focal
+        length (px) and k1.
 
     """
     reconstruction = pycolmap.Reconstruction()
     width, height = int(2 * k[0, 2]), int(2 * k[1, 2])
-    reconstruction.add_camera_with_trivial_rig(pycolmap.Camera(
-        model='PINHOLE', width=width, height=height, camera_id=CAMERA_ID,
-        params=[k[0, 0], k[1, 1], k[0, 2], k[1, 2]]))
+    camera = (pycolmap.Camera(model='SIMPLE_RADIAL', width=width, height=height,
+                              camera_id=CAMERA_ID, params=[k[0, 0], k[0, 2], k[1, 2], 0.0])
+              if refine_lens else
+              pycolmap.Camera(model='PINHOLE', width=width, height=height, camera_id=CAMERA_ID,
+                              params=[k[0, 0], k[1, 1], k[0, 2], k[1, 2]]))
+    reconstruction.add_camera_with_trivial_rig(camera)
     tracks_per_image = _add_images(pycolmap, reconstruction, problem)
     elements = [[] for _ in problem.host]
     for frame, tracks in enumerate(tracks_per_image):
@@ -52,13 +61,14 @@ def colmap_bundle_adjust(pycolmap: ModuleType, problem: BAProblem, k: np.ndarray
     config = pycolmap.BundleAdjustmentConfig()
     for frame in range(problem.num_frames):
         config.add_image(frame + 1)
-    config.set_constant_cam_intrinsics(CAMERA_ID)
+    if not refine_lens:
+        config.set_constant_cam_intrinsics(CAMERA_ID)
     for frame in np.flatnonzero(problem.fixed):
         config.set_constant_rig_from_world_pose(int(frame + 1))
     options = pycolmap.BundleAdjustmentOptions()
-    options.refine_focal_length = False
+    options.refine_focal_length = refine_lens
     options.refine_principal_point = False
-    options.refine_extra_params = False
+    options.refine_extra_params = refine_lens
     solver = options.ceres.solver_options
     solver.function_tolerance = solver.gradient_tolerance = solver.parameter_tolerance = 1e-15
     solver.max_num_iterations = 200
@@ -66,4 +76,8 @@ def colmap_bundle_adjust(pycolmap: ModuleType, problem: BAProblem, k: np.ndarray
     world_to_cam = np.stack([
         np.r_[reconstruction.image(frame + 1).cam_from_world().matrix(), [[0.0, 0.0, 0.0, 1.0]]]
         for frame in range(problem.num_frames)])
-    return geometry.invert_transform(world_to_cam)
+    poses = geometry.invert_transform(world_to_cam)
+    if not refine_lens:
+        return poses
+    focal, _, _, k1 = reconstruction.camera(CAMERA_ID).params
+    return poses, float(focal), float(k1)
