@@ -185,9 +185,11 @@ class CorrectionTrack:
     def update(self, times_ns: np.ndarray, T_refined: np.ndarray, T_raw: np.ndarray) -> None:
         """Record refined poses (K, 4, 4) of keyframes with raw poses (K, 4, 4) at ``times_ns``.
 
-        A keyframe refined again replaces its earlier correction (within one call, the last
-        one given wins). The next ``correct_live`` call starts a blend from the live correction
-        published last.
+        A call supersedes the corrections inside its span: a keyframe refined again takes the new
+        correction (within one call, the last one given wins), and an earlier call's keyframe
+        between this call's first and last is dropped, so the frames there follow this call's
+        corrections alone (two calls' solutions interleaved would zig-zag). The next
+        ``correct_live`` call starts a blend from the live correction published last.
 
         Raises:
             InputError: when the stamps (K,) do not match the poses.
@@ -200,7 +202,8 @@ class CorrectionTrack:
                              f'{len(corrections)} poses; pass one stamp per keyframe')
         new_times, last = np.unique(times[::-1], return_index=True)
         new_values = corrections[::-1][last]
-        kept = ~np.isin(self._times, new_times, assume_unique=True)
+        kept = ~(np.isin(self._times, new_times, assume_unique=True)
+                 | ((self._times > new_times[0]) & (self._times < new_times[-1])))
         old_times, old_values = self._times[kept], self._values[kept]
         where = np.searchsorted(old_times, new_times)
         self._times = np.insert(old_times, where, new_times)
@@ -242,6 +245,15 @@ class CorrectionTrack:
         """Return whether the keyframe at ``time_ns`` was refined by an earlier BA call."""
         index = int(np.searchsorted(self._times, int(time_ns)))
         return index < len(self._times) and int(self._times[index]) == int(time_ns)
+
+    def is_covered(self, time_ns: int) -> bool:
+        """Return whether ``time_ns`` lies between the oldest and newest refined keyframes.
+
+        Such a time's correction comes from BA results (a refined keyframe's, or interpolated
+        between two), so a BA call that holds it fixed keeps continuity with them.
+        """
+        return bool(len(self._times)) and int(self._times[0]) <= int(time_ns) <= int(
+            self._times[-1])
 
     def corrections(self, times_ns: np.ndarray) -> np.ndarray:
         """Return each time's correction (T, 4, 4); identity before any BA call."""

@@ -17,6 +17,7 @@ from infinihand_ros.ba.config import TrackingConfig
 from infinihand_ros.ba.features import FeatureCache
 from infinihand_ros.ba.features import KeyframeFeatures
 from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.ba.keyframe import StreamLens
 from infinihand_ros.ba.problem import BAProblem
 from infinihand_ros.core.errors import InputError
 import numpy as np
@@ -136,7 +137,8 @@ def _orb_links(features: list[KeyframeFeatures], config: TrackingConfig,
 
 def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed: np.ndarray,
                   tracking: TrackingConfig, solver: SolverConfig,
-                  cache: FeatureCache | None = None) -> BAProblem:
+                  cache: FeatureCache | None = None,
+                  lens: StreamLens | None = None) -> BAProblem:
     """Match the keyframes and return the BA problem over them.
 
     Args:
@@ -147,6 +149,9 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
         solver: solver settings (for the depth prior's sigma).
         cache: per-keyframe features kept from earlier calls, made with ``tracking``; None
             computes every keyframe's features afresh.
+        lens: the stream's lens from earlier calls: the start and prior centre of this call's
+            shared lens, whose prior sigmas shrink as 1 / sqrt(1 + its calls); None: the
+            keyframes' median pinhole. Keyframes that are all ``calibrated`` hold the lens.
 
     Raises:
         InputError: when the cache was made with other tracking settings, or no feature
@@ -189,13 +194,20 @@ def build_problem(keyframes: list[KeyframeInput], T_world_cam: np.ndarray, fixed
     initial = np.asarray(T_world_cam, dtype=np.float64)
     pairs = np.c_[np.arange(len(keyframes) - 1), np.arange(1, len(keyframes))]
     # One lens for the selection: the keyframes' median pinhole, refined by the solver.
-    lens = np.median(np.stack([k.intrinsics.matrix() for k in keyframes]), axis=0)
+    pinhole = np.median(np.stack([k.intrinsics.matrix() for k in keyframes]), axis=0)
+    sigma = np.array([solver.lens_focal_sigma, solver.lens_k1_sigma])
+    start = np.zeros(2)
+    if all(keyframe.calibrated for keyframe in keyframes):
+        sigma = np.zeros(2)
+    elif lens is not None:
+        start = np.array([np.log(lens.focal_px / pinhole[0, 0]), lens.k1])
+        sigma = sigma / np.sqrt(1.0 + lens.calls)
     return BAProblem(
         T_world_cam=initial,
-        intrinsics=np.broadcast_to(lens, (len(keyframes), 3, 3)).copy(),
+        intrinsics=np.broadcast_to(pinhole, (len(keyframes), 3, 3)).copy(),
         fixed=np.asarray(fixed, dtype=bool), host=host_frame[usable],
         host_xy=host_xy[usable], inv_depth=inv_depth, prior_inv_depth=inv_depth,
         prior_sigma=solver.depth_prior_rel_sigma * inv_depth, obs_track=new_id[track[observed]],
         obs_frame=frame[observed], obs_xy=xy[observed], obs_weight=np.ones(observed.sum()),
         prior_pairs=pairs, prior_T_rel=np.linalg.inv(initial[pairs[:, 0]]) @ initial[pairs[:, 1]],
-        lens_sigma=np.array([solver.lens_focal_sigma, solver.lens_k1_sigma]))
+        lens_sigma=sigma, lens=start)

@@ -1,6 +1,13 @@
-"""Plain-data inputs and outputs of a bundle-adjustment call (what the worker exchanges)."""
+"""Plain-data inputs and outputs of a bundle-adjustment call (what the worker exchanges).
+
+Poses and depths are metric at the stream's metric scale when the keyframe was made
+(``KeyframeInput.scale``, metres per model unit); that scale can move while the stream runs, so
+a call brings its keyframes to one scale first (``KeyframeInput.at_scale``) and its output
+says which (``BAOutput.scale``).
+"""
 
 from dataclasses import dataclass
+from dataclasses import replace
 
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
@@ -21,6 +28,9 @@ class KeyframeInput:
         T_world_cam: (4, 4) raw camera-to-world pose from the estimator (m).
         intrinsics: pinhole intrinsics of the image.
         hand_mask: (H, W) bool, True on hands (and arms) of either side: excluded from tracking.
+        scale: the metric scale (metres per model unit) the pose and depth were scaled with.
+        calibrated: the intrinsics were given (CameraInfo, ``--intrinsics``), not predicted:
+            BA holds the lens.
 
     """
 
@@ -31,8 +41,13 @@ class KeyframeInput:
     T_world_cam: np.ndarray
     intrinsics: Intrinsics
     hand_mask: np.ndarray
+    scale: float = 1.0
+    calibrated: bool = False
 
     def __post_init__(self) -> None:
+        if not (np.isfinite(self.scale) and self.scale > 0):
+            raise InputError(f'keyframe {self.frame_id}: scale must be positive and finite, '
+                             f'got {self.scale!r}')
         height, width = self.intrinsics.height, self.intrinsics.width
         image = np.asarray(self.image)
         if image.shape != (height, width, 3) or image.dtype != np.uint8:
@@ -44,6 +59,43 @@ class KeyframeInput:
             self.hand_mask, f'keyframe {self.frame_id} hand_mask', (height, width), bool))
         object.__setattr__(self, 'T_world_cam', as_array(
             self.T_world_cam, f'keyframe {self.frame_id} T_world_cam', (4, 4)))
+
+    def at_scale(self, scale: float) -> 'KeyframeInput':
+        """Return the keyframe with its pose's translation and its depth at metric ``scale``."""
+        if scale == self.scale:
+            return self
+        factor = scale / self.scale
+        return replace(self, T_world_cam=rescaled(self.T_world_cam, factor),
+                       depth=self.depth * np.float32(factor), scale=float(scale))
+
+
+@dataclass(frozen=True)
+class StreamLens:
+    """The stream's lens as the BA calls so far found it (one camera, one lens).
+
+    Attributes:
+        focal_px: focal length (px) at the keyframes' image size.
+        k1: radial distortion coefficient (``ba.costs``).
+        calls: accepted calls it averages.
+
+    """
+
+    focal_px: float
+    k1: float
+    calls: int
+
+    def updated(self, focal_px: float, k1: float) -> 'StreamLens':
+        """Return the average with one more call's lens."""
+        count = self.calls + 1
+        return StreamLens(self.focal_px + (focal_px - self.focal_px) / count,
+                          self.k1 + (k1 - self.k1) / count, count)
+
+
+def rescaled(T_world_cam: np.ndarray, factor: float) -> np.ndarray:
+    """Return poses (..., 4, 4) with their translations multiplied by ``factor``."""
+    out = np.array(T_world_cam, dtype=np.float64)
+    out[..., :3, 3] *= factor
+    return out
 
 
 @dataclass(frozen=True)
@@ -67,6 +119,7 @@ class BAOutput:
             without a check.
         focal_px: the refined shared focal length of the first keyframe (px).
         k1: the refined shared radial distortion coefficient.
+        scale: the metric scale of every pose here (the newest keyframe's; see the module).
 
     """
 
@@ -83,3 +136,4 @@ class BAOutput:
     held_out_costs: tuple[float, float] = (float('nan'), float('nan'))
     focal_px: float = float('nan')
     k1: float = 0.0
+    scale: float = 1.0

@@ -11,6 +11,9 @@ from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.keyframe_pool import BinaryKeyframePool
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
 
+#: Keyframes of the last selection that the stream's final BA call (``finish``) overlaps.
+FINISH_OVERLAP = 4
+
 
 class KeyframeBA:
     """A keyframe pool and the worker its selections go to (``add`` from one thread)."""
@@ -32,6 +35,29 @@ class KeyframeBA:
             return False
         self.worker.submit_selection([entry.state for entry in self.pool.last_selection],
                                      self.pool.frame_ids())
+        self.calls_submitted += 1
+        return True
+
+    def finish(self) -> bool:
+        """At the end of a stream, refine the pool's tail: return whether a call was started.
+
+        The pool's last trigger leaves up to ``trigger`` newer keyframes no call refined; an
+        offline run has no later call to wait for, so one more selection goes to the worker:
+        those keyframes, after the newest ``FINISH_OVERLAP`` of the last selection (refined
+        already: the oldest holds the gauge, so the tail joins what was refined before).
+
+        Raises:
+            BAWorkerError: when the worker no longer accepts work.
+
+        """
+        last = self.pool.last_selection
+        newest = last[-1].state.timestamp_ns if last else None
+        tail = [entry.state for entry in self.pool.entries()
+                if newest is None or entry.state.timestamp_ns > newest]
+        overlap = [entry.state for entry in last[-FINISH_OVERLAP:]]
+        if not tail or len(overlap) + len(tail) < 2:
+            return False
+        self.worker.submit_selection(overlap + tail, self.pool.frame_ids())
         self.calls_submitted += 1
         return True
 

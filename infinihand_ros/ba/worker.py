@@ -30,6 +30,8 @@ from infinihand_ros.ba.correspondences import build_problem
 from infinihand_ros.ba.features import FeatureCache
 from infinihand_ros.ba.keyframe import BAOutput
 from infinihand_ros.ba.keyframe import KeyframeInput
+from infinihand_ros.ba.keyframe import rescaled
+from infinihand_ros.ba.keyframe import StreamLens
 from infinihand_ros.ba.process import BAProcess
 from infinihand_ros.ba.process import BAProcessCrashError
 from infinihand_ros.ba.process import BAProcessError
@@ -66,6 +68,7 @@ class BARequest:
         fixed: (K,) bool gauge.
         retained_ids: frame ids a later selection may contain (the pool's ids after this
             selection); only their cached features outlive the call.
+        lens: the stream's lens from earlier calls (``build_problem``), or None.
 
     """
 
@@ -73,6 +76,7 @@ class BARequest:
     T_world_cam: np.ndarray
     fixed: np.ndarray
     retained_ids: tuple[int, ...] = ()
+    lens: StreamLens | None = None
 
     def __post_init__(self) -> None:
         count = len(self.keyframes)
@@ -92,21 +96,27 @@ class _Selection:
 
 
 def plan_request(keyframes: list[KeyframeInput], corrections: CorrectionTrack,
-                 retained_ids: Iterable[int] = ()) -> BARequest:
+                 retained_ids: Iterable[int] = (), lens: StreamLens | None = None) -> BARequest:
     """Return the request for a selection: corrected initial poses, gauge on the oldest refined.
 
-    The fixed keyframe is the oldest one refined by an earlier call (continuity with what was
-    already published); in the first call it is the oldest keyframe. ``retained_ids`` are the
-    pool's frame ids after the selection (``BinaryKeyframePool.frame_ids()``), whose features
-    stay cached for the next calls.
+    The keyframes are brought to the newest one's metric scale. The fixed keyframe is the
+    oldest one whose correction comes from earlier calls (refined, or between refined ones:
+    continuity with what was already published); in the first call it is the oldest keyframe.
+    ``corrections`` hold earlier results in model units (``PoseTrack.update_corrections``).
+    ``retained_ids`` are the pool's frame ids after the selection
+    (``BinaryKeyframePool.frame_ids()``), whose features stay cached for the next calls;
+    ``lens`` is the stream's lens so far.
     """
+    scale = keyframes[-1].scale
+    keyframes = [keyframe.at_scale(scale) for keyframe in keyframes]
     times = np.array([keyframe.timestamp_ns for keyframe in keyframes])
     raw = np.stack([keyframe.T_world_cam for keyframe in keyframes])
-    refined = np.array([corrections.is_refined(t) for t in times])
+    refined = np.array([corrections.is_covered(t) for t in times])
     fixed = np.zeros(len(keyframes), dtype=bool)
     fixed[int(np.argmax(refined)) if refined.any() else 0] = True
-    return BARequest(tuple(keyframes), corrections.correct(times, raw), fixed,
-                     tuple(int(frame_id) for frame_id in retained_ids))
+    start = rescaled(corrections.correct(times, rescaled(raw, 1.0 / scale)), scale)
+    return BARequest(tuple(keyframes), start, fixed,
+                     tuple(int(frame_id) for frame_id in retained_ids), lens)
 
 
 def run_request(request: BARequest, config: BAConfig,
@@ -119,7 +129,7 @@ def run_request(request: BARequest, config: BAConfig,
     start, start_cpu = time.perf_counter(), time.thread_time()
     try:
         problem = build_problem(list(request.keyframes), request.T_world_cam, request.fixed,
-                                config.tracking, config.solver, cache)
+                                config.tracking, config.solver, cache, request.lens)
     finally:
         if cache is not None:
             cache.retain(request.retained_ids)
@@ -145,7 +155,7 @@ def run_request(request: BARequest, config: BAConfig,
         held_out_costs=((np.nan, np.nan) if check is None
                         else (check.initial_cost, check.refined_cost)),
         focal_px=float(problem.intrinsics[0, 0, 0] * np.exp(result.lens[0])),
-        k1=float(result.lens[1]))
+        k1=float(result.lens[1]), scale=float(request.keyframes[-1].scale))
 
 
 class BundleAdjustmentWorker:
@@ -183,6 +193,7 @@ class BundleAdjustmentWorker:
         self._closing = False
         self._busy = False
         self._corrections = CorrectionTrack()
+        self._lens: StreamLens | None = None  # the stream's lens from the accepted calls
         self._results: queue.Queue[BAOutput] = queue.Queue()
         self._counts = dict.fromkeys(('submitted', 'done', 'dropped', 'failed', 'rejected',
                                       'callback_errors'), 0)
@@ -416,13 +427,18 @@ class BundleAdjustmentWorker:
         try:
             if isinstance(request, _Selection):
                 request = plan_request(list(request.keyframes), self._corrections,
-                                       request.retained_ids)
+                                       request.retained_ids, self._lens)
             output = self._process.call(request)
-            self._corrections.update(output.timestamps_ns, output.T_world_cam_refined,
-                                     output.T_world_cam_raw)
+            to_model = 1.0 / output.scale
+            self._corrections.update(output.timestamps_ns,
+                                     rescaled(output.T_world_cam_refined, to_model),
+                                     rescaled(output.T_world_cam_raw, to_model))
             # Later selections come from the pool, which never reaches before this call's
             # oldest keyframe: older corrections cannot matter to their plans any more.
             self._corrections.prune(int(output.timestamps_ns.min()))
+            if output.accepted:
+                self._lens = (StreamLens(output.focal_px, output.k1, 1) if self._lens is None
+                              else self._lens.updated(output.focal_px, output.k1))
         except Exception as exc:  # noqa: B902 - the thread must outlive any failed call
             self._record_failure(frame_ids, exc)
             return not isinstance(exc, BAProcessCrashError)

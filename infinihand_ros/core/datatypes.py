@@ -242,8 +242,9 @@ class FrameResult:
             'predicted' (the network's motion: too little to track), 'reinitialised' (the
             track restarted here: a discontinuity, e.g. a cut) or 'static' (a fixed camera).
         ba_failed: the last bundle-adjustment call over this keyframe failed (the solver
-            raised, the BA process died), so its pose lacks that refinement; set on the final
-            trajectory (``StreamingEngine.refined``), False on live results.
+            raised, the BA process died) or was rejected by its held-out check, so its pose
+            lacks that refinement; set on the final trajectory (``StreamingEngine.refined``),
+            False on live results.
 
     """
 

@@ -19,6 +19,8 @@ NUM_MANO_JOINTS: Final = 16
 NUM_HAND_POSE_JOINTS: Final = 15
 NUM_BETAS: Final = 10
 WRIST: Final = 0
+#: The middle finger's knuckle: with the wrist, the hand's long axis.
+MIDDLE_MCP: Final = 9
 
 JOINT_NAMES: Final = (
     'wrist',

@@ -12,15 +12,19 @@ resetting never waits long for BA: queued calls are dropped and a running one ge
 result.
 """
 
+import logging
 from typing import Final
 
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.keyframe_ba import KeyframeBA
+from infinihand_ros.ba.worker import BAWorkerError
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.ba.worker import FAILED_FRAMES_KEPT
 from infinihand_ros.engine.ba_backend import prune_corrections
 from infinihand_ros.engine.pose_track import PoseTrack
+
+logger = logging.getLogger(__name__)
 
 #: On close and reset, seconds the running BA call gets before its process is killed (queued
 #: calls are dropped at once: their results could only reach a stream that has ended).
@@ -57,17 +61,23 @@ class InProcessBA:
         """Hand finished BA calls to ``track``; prune corrections nobody can query any more."""
         for output in self.ba.worker.poll():
             track.update_corrections(output.timestamps_ns, output.T_world_cam_refined,
-                                     output.T_world_cam_raw)
+                                     output.T_world_cam_raw, output.scale)
             self.calls_done += 1
         prune_corrections(track, self.ba.pooled_stamps())
 
     def settle(self, track: PoseTrack, timeout_s: float | None = None) -> bool:
-        """Wait for every queued BA call, then hand the results to ``track``.
+        """Refine the pool's tail, wait for every queued BA call, hand the results to ``track``.
+
+        For the end of a stream (offline runs): see ``KeyframeBA.finish``.
 
         Returns:
             True when BA finished everything it was given, False when ``timeout_s`` ran out.
 
         """
+        try:
+            self.ba.finish()
+        except BAWorkerError as exc:  # its failed calls are already counted and flagged
+            logger.warning("BA: the stream's last keyframes stay unrefined (%s)", exc)
         idle = self.ba.worker.wait_idle(timeout_s)
         self.fold_in(track)
         return idle

@@ -6,10 +6,11 @@ the paper's eq. 9): ``T_net(0)^-1 T_net(t)``, so the first pose is the identity 
 camera head's prediction for the first anchor is not quite; the per-frame tracker
 (``engine/camera_tracker.py``, the track's front end) then measures the pose from the image,
 with that network pose as its prior and fallback, giving ``T_raw``. The
-best pose of a frame is ``D(t) @ S(s) @ T_raw``: ``S(s)`` scales the translation by the
+best pose of a frame is ``S(s) [D(t) @ T_raw]``: ``S(s)`` scales the translation by the
 trajectory's metric scale ``s`` (metres per model unit; one value for the whole track, so every
 frame is rescaled together, never frame by frame) and ``D(t)`` is the bundle-adjustment
-correction of the frame's time (rigid, blended in for live frames, see ``ba/corrections.py``).
+correction of the frame's time (rigid, blended in for live frames, see ``ba/corrections.py``),
+kept in model units so that it stays right when the scale moves after BA ran.
 
 The scale starts at ``metric_scale.initial`` (model units). During the warm-up the estimator
 collects hand/depth ratios; once it has ``min_samples`` the scale is set to the estimate in one
@@ -25,6 +26,7 @@ from dataclasses import dataclass
 from typing import Final
 
 from infinihand_ros.ba.corrections import CorrectionTrack
+from infinihand_ros.ba.keyframe import rescaled
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.datatypes import CameraPose
@@ -194,9 +196,15 @@ class PoseTrack:
         self._set_scale(self._scale * float(np.clip(ratio, 1.0 / (1.0 + step), 1.0 + step)))
 
     def update_corrections(self, timestamps_ns: np.ndarray, T_refined: np.ndarray,
-                           T_submitted: np.ndarray) -> None:
-        """Take a finished BA call: refined and submitted (scaled) keyframe poses (K, 4, 4)."""
-        self.corrections.update(timestamps_ns, T_refined, T_submitted)
+                           T_submitted: np.ndarray, scale: float | None = None) -> None:
+        """Take a finished BA call: refined and submitted keyframe poses (K, 4, 4).
+
+        Both are metric at ``scale`` (the call's; None: the track's scale now); they are kept
+        in model units.
+        """
+        to_model = 1.0 / (self._scale if scale is None else scale)
+        self.corrections.update(timestamps_ns, rescaled(T_refined, to_model),
+                                rescaled(T_submitted, to_model))
         self.version += 1
 
     def scaled(self, frame_index: int) -> CameraPose:
@@ -221,10 +229,11 @@ class PoseTrack:
         scaled = self.scaled(frame_index)
         if not len(self.corrections):
             return TrackedPose(scaled, scaled, self._scale, self.version, entry.tracking)
-        matrix = scaled.matrix()
-        corrected = (self.corrections.correct_live(entry.timestamp_ns, matrix) if live
-                     else self.corrections.correct(np.array([entry.timestamp_ns]),
-                                                   matrix[None])[0])
+        raw = entry.T_raw
+        corrected = rescaled(
+            self.corrections.correct_live(entry.timestamp_ns, raw) if live
+            else self.corrections.correct(np.array([entry.timestamp_ns]), raw[None])[0],
+            self._scale)
         # Corrections are rigid; re-orthonormalise away the rounding of their interpolation.
         pose = CameraPose(Rotation.from_matrix(corrected[:3, :3]).as_matrix(), corrected[:3, 3])
         return TrackedPose(pose, scaled, self._scale, self.version, entry.tracking)

@@ -754,7 +754,8 @@ class StreamingEngine:
                 self._ba.offer(keyframe_input(frame.index, frame.timestamp_ns,
                                               frame.source_image, depth,
                                               track.scaled(frame.index), record.intrinsics,
-                                              record.hands))
+                                              record.hands, track.scale,
+                                              frame.intrinsics is not None))
         return self._output.apply(FrameResult(
             timestamp_ns=frame.timestamp_ns, frame_index=frame.index,
             intrinsics=record.intrinsics, is_keyframe=frame.keyframe, depth=depth,

@@ -14,13 +14,15 @@ from infinihand_ros.ba.worker import BARequest
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.geometry import project_points
 from infinihand_ros.engine import ba_in_process
-from infinihand_ros.engine.ba_backend import hand_mask_from_boxes
 from infinihand_ros.engine.ba_backend import keyframe_input
+from infinihand_ros.engine.ba_backend import moving_mask
 from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.pose_track import PoseTrack
 from infinihand_ros.engine.pose_track import PoseTrackConfig
+from infinihand_ros.synth.arms import arm_points
 from infinihand_ros.synth.bag_sink import truth_to_hand_state
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
@@ -121,15 +123,38 @@ def test_background_ba_lowers_the_ate(ba_run: _BARun) -> None:
     assert ate(corrected) < 0.75 * ate(ba_run.raw)
 
 
-def test_hand_mask_covers_the_boxes() -> None:
-    """Every visible hand pixel lies inside the mask built from the boxes."""
+def test_moving_mask_covers_the_hands_and_their_forearms() -> None:
+    """Every visible hand pixel, and the bare forearm's axis in view, lie inside the mask.
+
+    The forearm comes from the synthetic person's arm (wrist to elbow), projected; the mask
+    knows only the hand's joints and box.
+    """
     frame = SyntheticSequence(SynthConfig(width=96, height=72), seed=1, num_frames=1).frame(0)
     hands = tuple(truth_to_hand_state(h) for h in frame.hands if h.visible)
-    mask = hand_mask_from_boxes(hands, frame.intrinsics)
+    mask = moving_mask(hands, frame.intrinsics)
     assert mask.shape == (72, 96)
     for truth in frame.hands:
         if truth.visible:
             assert mask[truth.mask].all()
+    large = SyntheticSequence(SynthConfig(), seed=1, num_frames=1)
+    frame = large.frame(0)
+    hands = tuple(truth_to_hand_state(h) for h in frame.hands if h.visible)
+    mask = moving_mask(hands, frame.intrinsics)
+    cam_from_scene = np.linalg.inv(large.T_scene_cams[0])
+    checked = 0
+    for track, joints in zip(large.tracks, large.joints_scene):
+        if not any(h.side == track.side for h in hands):
+            continue
+        wrist, _, elbow, _ = arm_points(joints[0][0], large.T_scene_body[0], track.side,
+                                        large.arm_style)
+        axis = wrist + np.linspace(0.05, 0.6, 12)[:, None] * (elbow - wrist)
+        points = axis @ cam_from_scene[:3, :3].T + cam_from_scene[:3, 3]
+        pixels = project_points(points[points[:, 2] > 0.05], frame.intrinsics.matrix())
+        col, row = np.round(pixels).astype(int).T
+        inside = (col >= 0) & (col < mask.shape[1]) & (row >= 0) & (row < mask.shape[0])
+        assert mask[row[inside], col[inside]].all()
+        checked += int(inside.sum())
+    assert checked >= 6
 
 
 def _sleep(request: object, config: BAConfig, cache: FeatureCache) -> None:

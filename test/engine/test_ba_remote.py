@@ -3,6 +3,7 @@
 from infinihand_ros.ba.corrections import Corrections
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.engine.ba_backend import keyframe_input
+from infinihand_ros.engine.ba_backend import moving_mask
 from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.pose_track import PoseTrack
@@ -33,11 +34,15 @@ def _keyframe(track: PoseTrack):
 
 
 def test_keyframe_carries_the_scaled_pose_depth_and_hand_boxes() -> None:
-    """The pose is the raw pose at the track's scale; the mask covers the 50 px hand box."""
+    """The pose is the raw pose at the track's scale; the mask covers the 50 px hand box.
+
+    The rest of the mask is the forearm's wedge (``moving_mask``), beyond the box.
+    """
     keyframe = _keyframe(_track())
     np.testing.assert_allclose(keyframe.T_world_cam[:3, 3], [2.0, 4.0, 6.0])
     assert keyframe.timestamp_ns == STAMP and keyframe.frame_id == 1
-    assert keyframe.hand_mask[:50, :50].all() and keyframe.hand_mask.sum() == 50 * 50
+    assert keyframe.hand_mask[:50, :50].all()
+    np.testing.assert_array_equal(keyframe.hand_mask, moving_mask((make_hand(0),), INTRINSICS))
     assert float(keyframe.depth[0, 0]) == 1.5
 
 

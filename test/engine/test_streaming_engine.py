@@ -10,6 +10,7 @@ from infinihand_ros.ba.config import SolverConfig
 from infinihand_ros.ba.config import WorkerConfig
 from infinihand_ros.ba.features import FeatureCache
 from infinihand_ros.ba.keyframe import BAOutput
+from infinihand_ros.ba.keyframe import rescaled
 from infinihand_ros.ba.worker import BARequest
 from infinihand_ros.ba.worker import BundleAdjustmentWorker
 from infinihand_ros.core.errors import ConfigError
@@ -452,7 +453,9 @@ def test_refined_results_wait_for_ba_and_apply_every_correction(frames: list) ->
     for before, after, correction in zip(live, final, corrections):
         raw = track.scaled(before.frame_index).matrix()
         np.testing.assert_allclose(after.raw_camera_pose.matrix(), raw, atol=1e-12)
-        np.testing.assert_allclose(after.camera_pose.matrix(), correction @ raw, atol=1e-6)
+        # Corrections are kept in model units: the metric scale applies after them.
+        expected = rescaled(correction @ rescaled(raw, 1.0 / track.scale), track.scale)
+        np.testing.assert_allclose(after.camera_pose.matrix(), expected, atol=1e-6)
         for hand in after.hands:
             np.testing.assert_allclose(hand.joints_world,
                                        after.camera_pose.to_world(hand.joints_cam), atol=1e-9)

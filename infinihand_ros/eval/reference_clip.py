@@ -1,0 +1,115 @@
+"""Real clips with an independent reference trajectory (``shared/data/real_ego``), and scores.
+
+A clip folder holds ``frames/NNNNNN.jpg``, ``frames_meta.json`` (each file's time) and
+``sfm_poses.json``: a pycolmap SfM camera-to-world trajectory (OpenCV axes, arbitrary scale and
+gauge) with its lens (COLMAP pixel convention). No ground truth exists for real clips: scores
+compare with that reference after a Sim(3) alignment (ATE as a share of the reference's path) or
+need no alignment (relative rotations).
+"""
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+import json
+from pathlib import Path
+
+import cv2
+from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.errors import InputError
+from infinihand_ros.core.geometry import invert_transform
+from infinihand_ros.core.geometry import rotation_angle_deg
+from infinihand_ros.core.units import NS_PER_S
+from infinihand_ros.eval.trajectory import trajectory_metrics
+import numpy as np
+
+#: Stamp of a clip's first frame (ns): 2026-01-01T00:00:00Z, as the project's sample data.
+FIRST_STAMP_NS = 1_767_225_600 * NS_PER_S
+
+
+@dataclass(frozen=True)
+class ReferenceClip:
+    """One real clip and its SfM reference.
+
+    Attributes:
+        name: the folder's name.
+        files: (N,) frame image paths, in time order.
+        timestamps_ns: (N,) their stamps.
+        T_world_cam: (N, 4, 4) the SfM camera-to-world poses.
+        intrinsics: the SfM lens as a pinhole (OpenCV pixel convention); None for a
+            reference without a lens (synthetic ground truth).
+        k1: the SfM lens's radial coefficient (SIMPLE_RADIAL).
+        path_length: the SfM trajectory's path length (its units).
+
+    """
+
+    name: str
+    files: tuple[Path, ...]
+    timestamps_ns: np.ndarray
+    T_world_cam: np.ndarray
+    intrinsics: Intrinsics | None
+    k1: float
+    path_length: float
+
+    def frames(self) -> Iterator[tuple[np.ndarray, int]]:
+        """Yield (RGB uint8 image, stamp) per frame, in order."""
+        for file, stamp in zip(self.files, self.timestamps_ns):
+            image = cv2.imread(str(file))
+            if image is None:
+                raise InputError(f'{file}: not a readable image')
+            yield cv2.cvtColor(image, cv2.COLOR_BGR2RGB), int(stamp)
+
+
+def load_reference_clip(folder: str | Path) -> ReferenceClip:
+    """Read a clip folder (see the module docstring).
+
+    Raises:
+        InputError: for a missing file or a frame without a reference pose.
+
+    """
+    folder = Path(folder)
+    try:
+        meta = json.loads((folder / 'frames_meta.json').read_text(encoding='utf-8'))
+        sfm = json.loads((folder / 'sfm_poses.json').read_text(encoding='utf-8'))
+    except (OSError, ValueError) as exc:
+        raise InputError(f'{folder}: not a reference clip ({exc})') from exc
+    names = [frame['file'] for frame in meta['frames']]
+    missing = [name for name in names if name not in sfm['poses_c2w']]
+    if missing:
+        raise InputError(f'{folder}: no reference pose for {missing[:3]}')
+    lens = sfm['intrinsics']
+    width, height = sfm['image_wh']
+    return ReferenceClip(
+        name=folder.name, files=tuple(folder / 'frames' / name for name in names),
+        timestamps_ns=FIRST_STAMP_NS + np.round(
+            np.array([frame['t_sec'] for frame in meta['frames']]) * NS_PER_S).astype(np.int64),
+        T_world_cam=np.array([sfm['poses_c2w'][name] for name in names], dtype=np.float64),
+        intrinsics=Intrinsics(lens['fx'], lens['fy'], lens['cx'] - 0.5, lens['cy'] - 0.5,
+                              width, height),
+        k1=float(lens['k1_simple_radial']), path_length=float(
+            sfm['trajectory_stats']['path_length']))
+
+
+def reference_scores(T_world_cam: np.ndarray, clip: ReferenceClip,
+                     frames: np.ndarray | None = None) -> dict[str, float]:
+    """Score camera-to-world poses (N, 4, 4) against the clip's reference.
+
+    Args:
+        T_world_cam: predicted poses of ``frames`` (all frames when None).
+        clip: the reference.
+        frames: (N,) indices of the clip frames the poses belong to.
+
+    Returns:
+        ``ate_pct``: Sim(3)-aligned ATE as a share of the reference's path (%);
+        ``rre_median_deg`` / ``rre_mean_deg``: error of the relative rotation between
+        consecutive given frames; ``end_deg``: error of the first-to-last relative rotation.
+
+    """
+    truth = clip.T_world_cam if frames is None else clip.T_world_cam[frames]
+    ate = trajectory_metrics(T_world_cam, truth).ate_m
+    pred_rel = invert_transform(T_world_cam[:-1]) @ T_world_cam[1:]
+    true_rel = invert_transform(truth[:-1]) @ truth[1:]
+    step = rotation_angle_deg(pred_rel[:, :3, :3], true_rel[:, :3, :3])
+    end_pred = invert_transform(T_world_cam[0]) @ T_world_cam[-1]
+    end_true = invert_transform(truth[0]) @ truth[-1]
+    return {'ate_pct': 100.0 * ate / clip.path_length,
+            'rre_median_deg': float(np.median(step)), 'rre_mean_deg': float(np.mean(step)),
+            'end_deg': float(rotation_angle_deg(end_pred[:3, :3], end_true[:3, :3]))}
