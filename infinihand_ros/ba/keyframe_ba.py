@@ -39,7 +39,7 @@ class KeyframeBA:
         return True
 
     def finish(self) -> bool:
-        """At the end of a stream, refine the pool's tail: return whether a call was started.
+        """At the end of a stream (once), refine the pool's tail: return whether a call started.
 
         The pool's last trigger leaves up to ``trigger`` newer keyframes no call refined; an
         offline run has no later call to wait for, so one more selection goes to the worker:

@@ -254,3 +254,23 @@ def test_history_stays_bounded_over_a_long_run(rng) -> None:
                 track.corrections(queries),
                 interpolate_corrections(keys, np.stack([history[k] for k in keys]), queries))
     assert largest == 4 and len(history) == 20_003
+
+
+def test_a_call_supersedes_the_corrections_inside_its_span() -> None:
+    """An older call's keyframe between a newer call's first and last is dropped.
+
+    Its frames then follow the newer call alone (two solutions interleaved would zig-zag);
+    corrections outside the newer span stay.
+    """
+    track = CorrectionTrack()
+    raw = np.stack([np.eye(4)] * 4)
+    track.update(np.array([0, 100, 200, 300]),
+                 np.stack([_pose(0, [0, 0, 0]), _pose(9, [0, 0, 0]), _pose(0, [0, 0, 0]),
+                           _pose(0, [0, 0, 0])]), raw)
+    track.update(np.array([0, 200]), np.stack([_pose(0, [0, 0, 0]), _pose(2, [0, 0, 0])]),
+                 raw[:2])
+    assert not track.is_refined(100) and track.is_refined(300)
+    assert track.is_covered(100) and not track.is_covered(301)
+    np.testing.assert_allclose(track.corrections(np.array([100]))[0], _pose(1, [0, 0, 0]),
+                               atol=1e-12)
+    np.testing.assert_allclose(track.corrections(np.array([300]))[0], np.eye(4), atol=1e-12)

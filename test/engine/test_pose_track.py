@@ -104,3 +104,21 @@ def test_config_rejects_bad_values() -> None:
         PoseTrackConfig(capacity=0)
     with pytest.raises(ConfigError, match='scale_deadband < max_scale_step'):
         PoseTrackConfig(max_scale_step=0.01, scale_deadband=0.02)
+
+
+def test_a_ba_correction_stays_right_when_the_scale_moves_afterwards() -> None:
+    """BA at scale 2 put frame 1 at x = 3 m (raw 1 unit); at scale 3 it is at x = 4.5 m.
+
+    Corrections are kept in model units, so the refined pose scales with the trajectory.
+    """
+    track = PoseTrack(PoseTrackConfig(max_scale_step=0.5, scale_deadband=0.01), SCALE)
+    track.add(0, 0, _pose(0.0))
+    track.add(1, 100, _pose(1.0))
+    _observe(track, 2.0, count=3)
+    assert track.scale == pytest.approx(2.0)
+    track.update_corrections(np.array([0, 100]), np.stack([_pose(0.0), _pose(3.0)]),
+                             np.stack([_pose(0.0), _pose(2.0)]), scale=2.0)
+    assert track.best(1, live=False).camera_pose.translation[0] == pytest.approx(3.0)
+    _observe(track, 6.0, count=50)  # the scale steps 50 % towards the new estimate
+    assert track.scale == pytest.approx(3.0)
+    assert track.best(1, live=False).camera_pose.translation[0] == pytest.approx(4.5)

@@ -132,6 +132,7 @@ class BundleAdjustmentNode(Node):
                   ('bad_keyframes', self._bad), ('sequences', self.session.sequences),
                   ('calls_submitted', worker.submitted), ('calls_done', worker.done),
                   ('calls_dropped', worker.dropped), ('calls_failed', worker.failed),
+                  ('calls_rejected', worker.rejected),
                   ('process_starts', worker.process_starts),
                   ('last_error', worker.last_error or ''))
         failing = worker.state == WorkerState.FAILED or worker.failed > 0
