@@ -1,12 +1,13 @@
 """Bundle adjustment stage by stage on one sequence, each stage scored against a reference.
 
-    python benchmarks/ba_diagnosis.py [--clip DIR | --bag] [--json]
+    python benchmarks/ba_diagnosis.py [--clip DIR | --bag [PATH]] [--json]
 
 ``--clip``: a real clip with an SfM reference (``shared/data/real_ego/<name>``), run with the
 converter's engine settings (``bag_to_dataset``'s defaults) at the clip's own rate; scores are
 against the SfM trajectory (Sim(3)-aligned ATE as a share of its path, relative rotation error
-between consecutive frames, first-to-last rotation error). ``--bag``: the bundled sample bag
-with the demo's settings, scored against its ground truth the same way (path: the true path).
+between consecutive frames, first-to-last rotation error). ``--bag``: a sequence with ground
+truth (default: the bundled sample bag) with the demo's settings, scored against its ground
+truth the same way (path: the true path); W-MPJPE of the final trajectory's hands beside.
 
 Stages: (1) the tracker's trajectory (what the stream had before BA, at the final metric
 scale); (2) every BA call: its keyframes, tracks and inliers, its held-out check (start ->
@@ -76,10 +77,22 @@ class RecordingBA(InProcessBA):
         prune_corrections(track, self.ba.pooled_stamps())
 
 
+def _world_error_mm(results: list, truth, pose_of) -> float:
+    """Return the mean world-joint error (mm) of the hands placed with ``pose_of(result)``."""
+    errors = []
+    for row, result in enumerate(results):
+        pose = pose_of(result)
+        for hand in result.hands:
+            if truth.visible[row, hand.side]:
+                placed = pose.to_world(hand.joints_cam)
+                errors.append(np.linalg.norm(placed - truth.joints_world[row, hand.side], axis=-1))
+    return float(1e3 * np.mean(errors)) if errors else float('nan')
+
+
 def _source(args: argparse.Namespace) -> tuple[str, ReferenceClip, list, object]:
     """Return (name, reference, frames (image, stamp, intrinsics), engine config)."""
     if args.bag:
-        sequence = open_eval_sequence(sample_bag_path())
+        sequence = open_eval_sequence(sample_bag_path() if args.bag is True else args.bag)
         truth = sequence.truth
         centres = truth.T_world_cam[:, :3, 3]
         reference = ReferenceClip(
@@ -88,6 +101,7 @@ def _source(args: argparse.Namespace) -> tuple[str, ReferenceClip, list, object]
         config = load_engine_config()
         config = replace(config, bundle_adjustment=for_offline_runs(
             config.bundle_adjustment or load_ba_config()))
+        args.truth = truth
         return sequence.name, reference, list(sequence.frames()), config
     clip = load_reference_clip(args.clip)
     frames = [(image, stamp, None) for image, stamp in clip.frames()]
@@ -152,6 +166,11 @@ def run(args: argparse.Namespace) -> dict:
               'final': reference_scores(np.stack([r.camera_pose.matrix() for r in final]),
                                         reference),
               'predicted_focal_px': float(np.median([r.intrinsics.fx for r in live]))}
+    truth = getattr(args, 'truth', None)
+    if truth is not None:
+        report['w_mpjpe_mm'] = {
+            'tracker': _world_error_mm(final, truth, lambda r: r.raw_camera_pose or r.camera_pose),
+            'final': _world_error_mm(final, truth, lambda r: r.camera_pose)}
     if reference.intrinsics is not None:
         report['reference_focal_px'] = reference.intrinsics.fx
         report['reference_k1'] = reference.k1
@@ -203,6 +222,9 @@ def _print(report: dict) -> None:
     steps = report['correction_step_deg']
     print(f"    correction change between neighbouring frames: median {steps['median']:.3f}, "
           f"max {steps['max']:.3f} deg")
+    if 'w_mpjpe_mm' in report:
+        print(f"  hands in the world (W-MPJPE): tracker {report['w_mpjpe_mm']['tracker']:.1f} mm, "
+              f"final {report['w_mpjpe_mm']['final']:.1f} mm")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -211,7 +233,8 @@ def main(argv: list[str] | None = None) -> int:
     source = parser.add_mutually_exclusive_group()
     source.add_argument('--clip', type=Path, default=REAL_EGO / 'ego4d_counter',
                         help='real clip folder with sfm_poses.json (default: %(default)s)')
-    source.add_argument('--bag', action='store_true', help='the bundled sample bag instead')
+    source.add_argument('--bag', nargs='?', const=True, type=Path,
+                        help='a sequence with ground truth instead (default: the sample bag)')
     parser.add_argument('--json', action='store_true', help='print the report as JSON')
     args = parser.parse_args(argv)
     report = run(args)

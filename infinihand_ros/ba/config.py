@@ -76,6 +76,7 @@ class SolverConfig:
             lens the intrinsics do not describe); 0 holds the pinhole.
         holdout_every: every n-th track is kept out of the fit; a result is used only where it
             fits those tracks better than its start (``ba.validation``); 0: no check.
+        holdout_min_gain: ... by at least this share of the start's held-out cost, in [0, 1).
 
     """
 
@@ -84,14 +85,15 @@ class SolverConfig:
     huber_px: float = 1.5
     gate_px: float = 3.0
     depth_prior_rel_sigma: float = 0.2
-    rel_pose_sigma_m: float = 0.05
-    rel_pose_sigma_rad: float = 0.02
+    rel_pose_sigma_m: float = 0.01
+    rel_pose_sigma_rad: float = 0.005
     initial_damping: float = 1e-4
     min_relative_decrease: float = 1e-4
     min_inverse_depth: float = 1e-3
     lens_focal_sigma: float = 0.1
     lens_k1_sigma: float = 0.2
     holdout_every: int = 5
+    holdout_min_gain: float = 0.3
 
     def __post_init__(self) -> None:
         owner = 'ba.solver'
@@ -100,6 +102,9 @@ class SolverConfig:
                          min_relative_decrease=self.min_relative_decrease,
                          lens_focal_sigma=self.lens_focal_sigma,
                          lens_k1_sigma=self.lens_k1_sigma, holdout_every=self.holdout_every)
+        if not 0.0 <= self.holdout_min_gain < 1.0:
+            raise ConfigError(f'{owner}.holdout_min_gain: must be in [0, 1), got '
+                              f'{self.holdout_min_gain!r}')
         if self.holdout_every == 1:
             raise ConfigError(f'{owner}.holdout_every: 1 would hold out every track; use 0 (no '
                               'check) or at least 2')

@@ -3,9 +3,11 @@
 Every ``holdout_every``-th track is kept out of the fit. After the solve, each held-out track's
 inverse depth is fitted (poses and lens held, the same depth prior) twice: once with the poses and
 lens BA started from, once with BA's. The refinement is accepted when its robust (Huber)
-reprojection cost per held-out observation is lower; otherwise the start stands. A BA whose poses
-fit its own tracks but not the scene (a wrong lens, a moving object tracked as scene, a bad
-local minimum) fails the check instead of bending the trajectory.
+reprojection cost per held-out observation is lower by at least ``holdout_min_gain`` (a share
+of the start's); otherwise the start stands. A BA whose poses fit its own tracks but not the
+scene (a moving object tracked as scene, a bad local minimum) fails the check, and so does one
+that moves the poses without explaining the images clearly better (a start the images cannot
+improve on: moving it would only add the solution's own errors).
 """
 
 from dataclasses import dataclass
@@ -21,8 +23,6 @@ import numpy as np
 
 #: Fewer held-out observations than this: the check cannot judge, the refinement is refused.
 MIN_HELD_OUT_OBSERVATIONS: Final = 20
-#: A refinement whose held-out cost is at most this fraction above the start's still passes.
-TIE_TOLERANCE: Final = 0.05
 #: Depth-only iterations when the held-out tracks are fitted to a set of poses.
 DEPTH_ITERATIONS: Final = 5
 #: No held-out observation is gated away: the check scores all of them (robustly).
@@ -34,7 +34,7 @@ class HoldoutCheck:
     """The held-out test of one BA call.
 
     Attributes:
-        accepted: the refinement does not raise the held-out cost (``TIE_TOLERANCE``).
+        accepted: the refinement lowers the held-out cost by at least the required share.
         initial_cost: Huber cost per held-out observation with the starting poses and lens (px^2).
         refined_cost: the same with BA's poses and lens.
         observations: held-out observations compared.
@@ -82,4 +82,5 @@ def check_refinement(held: BAProblem, T_refined: np.ndarray, lens_refined: np.nd
         return HoldoutCheck(False, np.nan, np.nan, count)
     initial = held_out_cost(held, held.T_world_cam, held.lens, config)
     refined = held_out_cost(held, T_refined, lens_refined, config)
-    return HoldoutCheck(bool(refined <= initial * (1.0 + TIE_TOLERANCE)), initial, refined, count)
+    accepted = refined <= initial * (1.0 - config.holdout_min_gain)
+    return HoldoutCheck(bool(accepted), initial, refined, count)
