@@ -1,6 +1,6 @@
 """Bundle adjustment stage by stage on one sequence, each stage scored against a reference.
 
-    python benchmarks/ba_diagnosis.py [--clip DIR | --bag [PATH]] [--json]
+    python benchmarks/ba_diagnosis.py [--clip DIR | --bag [PATH]] [--cost] [--json]
 
 ``--clip``: a real clip with an SfM reference (``shared/data/real_ego/<name>``), run with the
 converter's engine settings (``bag_to_dataset``'s defaults) at the clip's own rate; scores are
@@ -15,7 +15,8 @@ refined cost, accepted or not), the shared lens it found, its keyframes' scores 
 after, and, rebuilt with the hand boxes alone masked, how many of its tracks lie on the
 forearms and their residuals against the scene's; (3) the live trajectory; (4) the final
 trajectory (every correction folded into every frame) and how far neighbouring frames'
-corrections disagree.
+corrections disagree. ``--cost``: the same stream again without BA, and BA's share of the
+wall time (the stream and the final trajectory, BA's worker process beside it).
 """
 
 import argparse
@@ -194,6 +195,16 @@ def run(args: argparse.Namespace) -> dict:
                                         config.bundle_adjustment)
         calls.append(call)
     report['calls'] = calls
+    if args.cost:
+        start = time.perf_counter()
+        with StreamingEngine(replace(config, bundle_adjustment=None)) as engine:
+            results = []
+            for image, stamp, intrinsics in frames:
+                results += engine.push(image, stamp, intrinsics)
+            engine.refined(results + engine.flush())
+        without = time.perf_counter() - start
+        report['seconds_without_ba'] = round(without, 1)
+        report['ba_share_pct'] = round(100.0 * (seconds - without) / seconds, 1)
     return report
 
 
@@ -222,6 +233,9 @@ def _print(report: dict) -> None:
     steps = report['correction_step_deg']
     print(f"    correction change between neighbouring frames: median {steps['median']:.3f}, "
           f"max {steps['max']:.3f} deg")
+    if 'ba_share_pct' in report:
+        print(f"  wall time {report['seconds']} s with BA, {report['seconds_without_ba']} s "
+              f"without: BA's share {report['ba_share_pct']} %")
     if 'w_mpjpe_mm' in report:
         print(f"  hands in the world (W-MPJPE): tracker {report['w_mpjpe_mm']['tracker']:.1f} mm, "
               f"final {report['w_mpjpe_mm']['final']:.1f} mm")
@@ -235,6 +249,8 @@ def main(argv: list[str] | None = None) -> int:
                         help='real clip folder with sfm_poses.json (default: %(default)s)')
     source.add_argument('--bag', nargs='?', const=True, type=Path,
                         help='a sequence with ground truth instead (default: the sample bag)')
+    parser.add_argument('--cost', action='store_true',
+                        help="also run without BA and print BA's share of the wall time")
     parser.add_argument('--json', action='store_true', help='print the report as JSON')
     args = parser.parse_args(argv)
     report = run(args)
