@@ -39,7 +39,6 @@ from infinihand_ros.core.geometry import invert_transform
 from infinihand_ros.core.geometry import rotation_angle_deg
 from infinihand_ros.engine.ba_backend import box_mask
 from infinihand_ros.engine.ba_backend import moving_mask
-from infinihand_ros.engine.ba_backend import prune_corrections
 from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
@@ -68,14 +67,11 @@ class RecordingBA(InProcessBA):
         self.keyframes[keyframe.frame_id] = keyframe
         super().offer(keyframe)
 
-    def fold_in(self, track) -> None:
+    def fold_in(self, track) -> list:
         """Fold results in as ``InProcessBA`` does, keeping each."""
-        for output in self.ba.worker.poll():
-            track.update_corrections(output.timestamps_ns, output.T_world_cam_refined,
-                                     output.T_world_cam_raw, output.scale)
-            self.calls_done += 1
-            self.outputs.append(output)
-        prune_corrections(track, self.ba.pooled_stamps())
+        outputs = super().fold_in(track)
+        self.outputs += outputs
+        return outputs
 
 
 def _world_error_mm(results: list, truth, pose_of) -> float:
@@ -90,8 +86,11 @@ def _world_error_mm(results: list, truth, pose_of) -> float:
     return float(1e3 * np.mean(errors)) if errors else float('nan')
 
 
-def _source(args: argparse.Namespace) -> tuple[str, ReferenceClip, list, object]:
-    """Return (name, reference, frames (image, stamp, intrinsics), engine config)."""
+def _source(args: argparse.Namespace) -> tuple[str, ReferenceClip, list, object, object]:
+    """Return (name, reference, frames (image, stamp, intrinsics), engine config, truth).
+
+    ``truth`` is the sequence's ``GroundTruth`` (hands included), None for a real clip.
+    """
     if args.bag:
         sequence = open_eval_sequence(sample_bag_path() if args.bag is True else args.bag)
         truth = sequence.truth
@@ -102,11 +101,10 @@ def _source(args: argparse.Namespace) -> tuple[str, ReferenceClip, list, object]
         config = load_engine_config()
         config = replace(config, bundle_adjustment=for_offline_runs(
             config.bundle_adjustment or load_ba_config()))
-        args.truth = truth
-        return sequence.name, reference, list(sequence.frames()), config
+        return sequence.name, reference, list(sequence.frames()), config, truth
     clip = load_reference_clip(args.clip)
     frames = [(image, stamp, None) for image, stamp in clip.frames()]
-    return clip.name, clip, frames, engine_config_for(load_convert_config())
+    return clip.name, clip, frames, engine_config_for(load_convert_config()), None
 
 
 def _fmt(scores: dict[str, float]) -> str:
@@ -147,7 +145,7 @@ def _region_split(keyframes: list[KeyframeInput], hands: dict, poses: np.ndarray
 
 def run(args: argparse.Namespace) -> dict:
     """Stream the sequence with BA on, recording every stage; return the report."""
-    name, reference, frames, config = _source(args)
+    name, reference, frames, config, truth = _source(args)
     backend = RecordingBA(config.bundle_adjustment, config.pose_track.capacity)
     start = time.perf_counter()
     with StreamingEngine(config, ba_backend=backend) as engine:
@@ -167,7 +165,6 @@ def run(args: argparse.Namespace) -> dict:
               'final': reference_scores(np.stack([r.camera_pose.matrix() for r in final]),
                                         reference),
               'predicted_focal_px': float(np.median([r.intrinsics.fx for r in live]))}
-    truth = getattr(args, 'truth', None)
     if truth is not None:
         report['w_mpjpe_mm'] = {
             'tracker': _world_error_mm(final, truth, lambda r: r.raw_camera_pose or r.camera_pose),

@@ -20,6 +20,7 @@ corrections no query from that stamp on can use (a blend keeps its own start), a
 
 from dataclasses import dataclass
 
+from infinihand_ros.ba.keyframe import rescaled
 from infinihand_ros.ba.lie import skew
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.validation import as_array
@@ -182,8 +183,13 @@ class CorrectionTrack:
         """Stamp of the newest correction held (ns), or None before any BA result."""
         return int(self._times[-1]) if len(self._times) else None
 
-    def update(self, times_ns: np.ndarray, T_refined: np.ndarray, T_raw: np.ndarray) -> None:
+    def update(self, times_ns: np.ndarray, T_refined: np.ndarray, T_raw: np.ndarray,
+               scale: float = 1.0) -> None:
         """Record refined poses (K, 4, 4) of keyframes with raw poses (K, 4, 4) at ``times_ns``.
+
+        The poses' translations are at metric ``scale`` (metres per unit of the raw poses the
+        track corrects): the correction is kept for raw poses in those units, so it stays right
+        when the scale moves later.
 
         A call supersedes the corrections inside its span: a keyframe refined again takes the new
         correction (within one call, the last one given wins), and an earlier call's keyframe
@@ -196,7 +202,8 @@ class CorrectionTrack:
 
         """
         times = np.asarray(times_ns, dtype=np.int64).reshape(-1)
-        corrections = keyframe_corrections(T_refined, T_raw).reshape(-1, 4, 4)
+        corrections = keyframe_corrections(rescaled(T_refined, 1.0 / scale),
+                                           rescaled(T_raw, 1.0 / scale)).reshape(-1, 4, 4)
         if len(times) != len(corrections):
             raise InputError(f'CorrectionTrack.update: {len(times)} stamps for '
                              f'{len(corrections)} poses; pass one stamp per keyframe')

@@ -53,9 +53,10 @@ class _Normal:
 class _Layout:
     """Per-problem constants: where each term lands in the normal equations."""
 
-    obs_columns: np.ndarray  # (M, 14) unknowns of each observation (host, observer, lens)
-    obs_flat: np.ndarray  # (M * 196,) places of their 14x14 blocks in the raveled h_pp
-    depth_flat: np.ndarray  # (M * 14,) places of their pose/depth terms in the raveled h_pd
+    obs_columns: np.ndarray  # (M, C) unknowns of each observation: host, observer (12), and
+    #                          the lens (2) where the problem frees it
+    obs_flat: np.ndarray  # (M * C * C,) places of their CxC blocks in the raveled h_pp
+    depth_flat: np.ndarray  # (M * C,) places of their pose/depth terms in the raveled h_pd
     prior_columns: np.ndarray  # (R, 12) pose unknowns of each relative-pose prior
     prior_flat: np.ndarray  # (R * 144,)
 
@@ -166,10 +167,10 @@ class BundleAdjuster:
             weights = weights * costs.huber_weight(error, self.config.huber_px)
         sqrt_w = np.sqrt(weights)[:, None]
         num_tracks, size = len(problem.host), _size(problem)
-        jac_lens = (reproj.jac_lens if problem.lens_free.any()
-                    else np.zeros(reproj.jac_host.shape[:2] + (costs.LENS_DOF,)))
-        jac = (np.concatenate([reproj.jac_host, reproj.jac_target, jac_lens], axis=-1)
-               * sqrt_w[..., None])
+        blocks = [reproj.jac_host, reproj.jac_target]
+        if problem.lens_free.any():
+            blocks.append(reproj.jac_lens)
+        jac = np.concatenate(blocks, axis=-1) * sqrt_w[..., None]
         residual = reproj.residual * sqrt_w
         h_pp, g_p = _pose_blocks(layout.obs_columns, layout.obs_flat, jac, residual, size)
         jac_depth = reproj.jac_inv_depth * sqrt_w
@@ -259,7 +260,7 @@ def _flat_blocks(columns: np.ndarray, size: int) -> np.ndarray:
 def _make_layout(problem: BAProblem) -> _Layout:
     """Return the problem's normal-equation indices (fixed during a solve)."""
     size, num_tracks = _size(problem), len(problem.host)
-    lens = np.arange(size - costs.LENS_DOF, size)
+    lens = np.arange(size - costs.LENS_DOF, size) if problem.lens_free.any() else None
     obs_columns = _pose_columns(problem.host[problem.obs_track], problem.obs_frame, lens)
     prior_columns = _pose_columns(problem.prior_pairs[:, 0], problem.prior_pairs[:, 1])
     return _Layout(obs_columns, _flat_blocks(obs_columns, size),

@@ -429,10 +429,8 @@ class BundleAdjustmentWorker:
                 request = plan_request(list(request.keyframes), self._corrections,
                                        request.retained_ids, self._lens)
             output = self._process.call(request)
-            to_model = 1.0 / output.scale
-            self._corrections.update(output.timestamps_ns,
-                                     rescaled(output.T_world_cam_refined, to_model),
-                                     rescaled(output.T_world_cam_raw, to_model))
+            self._corrections.update(output.timestamps_ns, output.T_world_cam_refined,
+                                     output.T_world_cam_raw, output.scale)
             # Later selections come from the pool, which never reaches before this call's
             # oldest keyframe: older corrections cannot matter to their plans any more.
             self._corrections.prune(int(output.timestamps_ns.min()))

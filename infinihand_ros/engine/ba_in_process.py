@@ -16,6 +16,7 @@ import logging
 from typing import Final
 
 from infinihand_ros.ba.config import BAConfig
+from infinihand_ros.ba.keyframe import BAOutput
 from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.keyframe_ba import KeyframeBA
 from infinihand_ros.ba.worker import BAWorkerError
@@ -57,13 +58,20 @@ class InProcessBA:
         """Feed a keyframe to the pool; a triggered selection goes to the worker (no wait)."""
         self.ba.add(keyframe)
 
-    def fold_in(self, track: PoseTrack) -> None:
-        """Hand finished BA calls to ``track``; prune corrections nobody can query any more."""
-        for output in self.ba.worker.poll():
+    def fold_in(self, track: PoseTrack) -> list[BAOutput]:
+        """Hand finished BA calls to ``track``; prune corrections nobody can query any more.
+
+        Returns:
+            The calls handed over, oldest first (for diagnostics).
+
+        """
+        outputs = self.ba.worker.poll()
+        for output in outputs:
             track.update_corrections(output.timestamps_ns, output.T_world_cam_refined,
                                      output.T_world_cam_raw, output.scale)
             self.calls_done += 1
         prune_corrections(track, self.ba.pooled_stamps())
+        return outputs
 
     def settle(self, track: PoseTrack, timeout_s: float | None = None) -> bool:
         """Refine the pool's tail, wait for every queued BA call, hand the results to ``track``.

@@ -202,9 +202,8 @@ class PoseTrack:
         Both are metric at ``scale`` (the call's; None: the track's scale now); they are kept
         in model units.
         """
-        to_model = 1.0 / (self._scale if scale is None else scale)
-        self.corrections.update(timestamps_ns, rescaled(T_refined, to_model),
-                                rescaled(T_submitted, to_model))
+        self.corrections.update(timestamps_ns, T_refined, T_submitted,
+                                self._scale if scale is None else scale)
         self.version += 1
 
     def scaled(self, frame_index: int) -> CameraPose:
