@@ -44,15 +44,20 @@ class PoolConfig:
     Attributes:
         trigger: N, BA runs when the pool holds more than N entries.
         stride: K, every K-th pool entry from the oldest is selected.
+        min_interval_s: a keyframe enters the pool at least this long after the one before
+            (the stream's other keyframes skip BA and its depth maps): baselines BA can use,
+            and BA's cost independent of the frame rate.
 
     """
 
     trigger: int = 32
     stride: int = 2
+    min_interval_s: float = 0.1
 
     def __post_init__(self) -> None:
         require_at_least('ba.pool', 1, trigger=self.trigger)
         require_at_least('ba.pool', 2, stride=self.stride)
+        require_at_least('ba.pool', 0.0, min_interval_s=self.min_interval_s)
 
 
 @dataclass(frozen=True)

@@ -1,30 +1,30 @@
 """Bundle adjustment in its own process, so that it cannot slow down or take down the stream.
 
-A ``BAProcess`` owns one child Python process (started with ``spawn``) that runs a BA function
-(the worker's ``run_request``) with its own ``FeatureCache``. The child's settings stay in the
-child: one torch thread, single-threaded OpenCV and the configured niceness for every one of
+A ``BAProcess`` owns one child Python process that runs a BA function (the worker's
+``run_request``) with its own ``FeatureCache``. The child is a fresh interpreter started as
+``python -m infinihand_ros.ba.process``: it imports only what BA needs (numpy, SciPy, OpenCV;
+not torch, not the caller's main module), about 0.5 s of one core, and its settings stay in it:
+one BLAS/OpenMP thread, single-threaded OpenCV and the configured niceness for every one of
 its threads (it is started from a short-lived thread that lowered its own priority first, so
-the child is born with it, BLAS threads started by its imports included). The stream's process
-keeps its torch and OpenCV thread counts and does not share its interpreter lock with BA. The
-price: the child is a second interpreter with torch imported (about 240 MB private memory) and
-takes one to two seconds to start (in the background; the first call waits for it).
+the child is born with it). The stream's process keeps its torch and OpenCV thread counts and
+does not share its interpreter lock with BA.
 
-Requests go through a pipe as pickle protocol 5 with out-of-band buffers: the images and depth
-maps are written straight from the arrays (no pickled copy, the interpreter lock released while
-the kernel copies), about 10 ms for an 11-keyframe selection of 518x378 frames.
-
-``spawn`` imports the parent's main module again in the child, so a script that creates a BA
-worker must keep its top level behind ``if __name__ == '__main__':`` (console scripts, ROS
-entry points and pytest do).
+Requests go through a socket pair as pickle protocol 5 with out-of-band buffers: the images and
+depth maps are written straight from the arrays (no pickled copy, the interpreter lock released
+while the kernel copies), about 10 ms for an 11-keyframe selection of 518x378 frames. The first
+message tells the child its settings and the function to run (a module-level function, imported
+by name in the child: ``sys.path`` is passed on).
 """
 
 from collections.abc import Callable
 import logging
-import multiprocessing
 from multiprocessing.connection import Connection
 import os
 import pickle
 import signal
+import socket
+import subprocess
+import sys
 import threading
 import traceback
 
@@ -32,9 +32,12 @@ import cv2
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.features import FeatureCache
 from infinihand_ros.core.errors import InfiniHandError
-import torch
 
 logger = logging.getLogger(__name__)
+
+#: Thread counts of the child's numerical libraries (read when they are imported).
+CHILD_THREAD_ENV: dict[str, str] = dict.fromkeys(
+    ('OMP_NUM_THREADS', 'OPENBLAS_NUM_THREADS', 'MKL_NUM_THREADS'), '1')
 
 #: Seconds a child that ran calls gets to exit on its own when told to stop, before it is
 #: killed (one that never ran a call holds nothing and is killed at once).
@@ -80,17 +83,20 @@ def receive_message(connection: Connection) -> object:
     return pickle.loads(header, buffers=[connection.recv_bytes() for _ in range(count)])
 
 
-def serve_requests(connection: Connection, config: BAConfig, run: RunFunction) -> None:
-    """Child main: run each request with ``run`` and send back its output or its failure.
+def serve_requests(connection: Connection) -> None:
+    """Child main: read the settings and the BA function, then serve requests until stopped.
 
-    Messages in are ``('call', request)`` or ``('stop', None)``; replies are ``('ok', output)``
-    or ``('error', (message, traceback))``. Runs until told to stop or the parent's end of the
-    pipe closes.
+    The first message is ``(config, run)``; then messages are ``('call', request)`` or
+    ``('stop', None)``; replies are ``('ok', output)`` or ``('error', (message, traceback))``.
+    Runs until told to stop or the parent's end closes.
     """
     # Ctrl-C reaches the whole process group: the parent decides when BA stops.
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        config, run = receive_message(connection)
+    except EOFError:
+        return
     _lower_priority(config.worker.niceness)  # born with it already; this makes sure
-    torch.set_num_threads(1)  # this process only: BA is one core at low priority
     cv2.setNumThreads(1)
     cache = FeatureCache(config.tracking)
     while True:
@@ -115,14 +121,17 @@ def _lower_priority(niceness: int) -> None:
         logger.info('BA: could not set niceness %d (%s)', niceness, exc)
 
 
-def _start_lowered(process: multiprocessing.process.BaseProcess, niceness: int) -> None:
-    """Start ``process`` from a new thread at ``niceness``: the child inherits the priority."""
+def _start_lowered(command: list[str], child_fd: int, niceness: int) -> subprocess.Popen:
+    """Start ``command`` from a new thread at ``niceness``: the child inherits the priority."""
+    started: list[subprocess.Popen] = []
     failure: list[BaseException] = []
+    environment = {**os.environ, **CHILD_THREAD_ENV,
+                   'PYTHONPATH': os.pathsep.join(path for path in sys.path if path)}
 
     def start() -> None:
         _lower_priority(niceness)
         try:
-            process.start()
+            started.append(subprocess.Popen(command, pass_fds=(child_fd,), env=environment))
         except Exception as exc:  # noqa: B902 - re-raised in the calling thread below
             failure.append(exc)
 
@@ -130,9 +139,9 @@ def _start_lowered(process: multiprocessing.process.BaseProcess, niceness: int) 
     starter.start()
     starter.join()
     if failure:
-        hint = "in a script, create the BA worker under if __name__ == '__main__':"
-        raise BAProcessCrashError(
-            f'BA process could not be started ({failure[0]!r}); {hint}') from failure[0]
+        raise BAProcessCrashError(f'BA process could not be started ({failure[0]!r}): is '
+                                  f'{sys.executable} still there?') from failure[0]
+    return started[0]
 
 
 class BAProcess:
@@ -143,7 +152,7 @@ class BAProcess:
     """
 
     def __init__(self, config: BAConfig, run: RunFunction) -> None:
-        """Start the child process (it takes a second or two to import; calls wait for it).
+        """Start the child process (it takes about half a second to import; calls wait).
 
         Args:
             config: BA settings (the child's niceness, tracking and solver settings).
@@ -155,8 +164,7 @@ class BAProcess:
         """
         self.config = config
         self._run = run
-        self._context = multiprocessing.get_context('spawn')
-        self._process: multiprocessing.process.BaseProcess | None = None
+        self._process: subprocess.Popen | None = None
         self._connection: Connection | None = None
         self._calls = 0  # calls sent to the current child
         self.starts = 0
@@ -176,7 +184,7 @@ class BAProcess:
                 call starts a new child.
 
         """
-        if self._process is None or not self._process.is_alive():
+        if self._process is None or self._process.poll() is not None:
             self._stop(kill=True)
             self._start()
         self._calls += 1
@@ -206,41 +214,50 @@ class BAProcess:
             return
         try:
             process.kill()
-        except ValueError as exc:  # closed meanwhile by the calling thread: nothing to kill
-            logger.debug('BA process already closed (%s)', exc)
+        except OSError as exc:  # reaped meanwhile by the calling thread: nothing to kill
+            logger.debug('BA process already gone (%s)', exc)
 
     def _start(self) -> None:
-        """Start a child with its end of a new pipe."""
-        parent_end, child_end = self._context.Pipe(duplex=True)
-        process = self._context.Process(target=serve_requests,
-                                        args=(child_end, self.config, self._run),
-                                        name='bundle_adjustment', daemon=True)
+        """Start a child with its end of a new socket pair and send it its settings."""
+        parent_end, child_end = socket.socketpair()
+        connection = Connection(parent_end.detach())
         try:
-            _start_lowered(process, self.config.worker.niceness)
+            process = _start_lowered(
+                [sys.executable, '-m', 'infinihand_ros.ba.process', str(child_end.fileno())],
+                child_end.fileno(), self.config.worker.niceness)
         except BAProcessCrashError:
-            parent_end.close()
+            connection.close()
             raise
         finally:
             child_end.close()  # the child holds its own copy; ours would hide its exit
-        self._process, self._connection, self._calls = process, parent_end, 0
+        try:
+            send_message(connection, (self.config, self._run))
+        except OSError as exc:  # died at once: the first call starts another
+            logger.warning('BA process gone before it got its settings (%s)', exc)
+        self._process, self._connection, self._calls = process, connection, 0
         self.starts += 1
 
     def _stop(self, kill: bool) -> int | None:
-        """Stop the child (politely unless ``kill``), close the pipe; return its exit code."""
+        """Stop the child (politely unless ``kill``), close the socket; return its exit code."""
         process, connection, calls = self._process, self._connection, self._calls
         if process is None:
             return None
-        if not kill and calls and process.is_alive():
+        if not kill and calls and process.poll() is None:
             try:
                 send_message(connection, ('stop', None))
             except OSError as exc:
                 logger.debug('BA process gone before it was told to stop (%s)', exc)
-            process.join(STOP_TIMEOUT_S)  # still reachable by ``kill`` meanwhile
+            try:
+                process.wait(STOP_TIMEOUT_S)  # still reachable by ``kill`` meanwhile
+            except subprocess.TimeoutExpired:
+                logger.warning('BA process did not stop within %.0f s: killed', STOP_TIMEOUT_S)
         self._process = self._connection = None
-        if process.is_alive():
+        if process.poll() is None:
             process.kill()
-        process.join()
-        code = process.exitcode
+        code = process.wait()
         connection.close()
-        process.close()
         return code
+
+
+if __name__ == '__main__':
+    serve_requests(Connection(int(sys.argv[1])))

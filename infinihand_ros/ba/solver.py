@@ -24,7 +24,6 @@ from infinihand_ros.core import geometry
 from infinihand_ros.core.errors import InputError
 import numpy as np
 from scipy import linalg
-import torch
 
 logger = logging.getLogger(__name__)
 
@@ -207,12 +206,10 @@ class BundleAdjuster:
         h_dd = normal.h_dd * (1.0 + damping) + DEPTH_DIAGONAL_FLOOR
         h_pp = normal.h_pp[np.ix_(free, free)]
         h_pp[np.diag_indices_from(h_pp)] *= 1.0 + damping
-        # The (6F, P) products run in torch so that they follow the process's torch thread
-        # setting; numpy's BLAS would start its own threads beside the stream's model.
-        h_pd = torch.from_numpy(normal.h_pd[free])
-        scaled = torch.from_numpy(normal.h_pd[free] / h_dd)
-        reduced = h_pp - (scaled @ h_pd.T).numpy()
-        rhs = normal.g_p[free] - (scaled @ torch.from_numpy(normal.g_d)).numpy()
+        h_pd = normal.h_pd[free]
+        scaled = h_pd / h_dd
+        reduced = h_pp - scaled @ h_pd.T
+        rhs = normal.g_p[free] - scaled @ normal.g_d
         try:
             delta_free = (linalg.cho_solve(linalg.cho_factor(reduced), rhs) if len(rhs)
                           else np.zeros(0))
@@ -220,7 +217,7 @@ class BundleAdjuster:
             return None
         delta = np.zeros(_size(problem))
         delta[free] = delta_free
-        delta_depth = (normal.g_d - (h_pd.T @ torch.from_numpy(delta_free)).numpy()) / h_dd
+        delta_depth = (normal.g_d - h_pd.T @ delta_free) / h_dd
         poses = POSE_DOF * problem.num_frames
         rotation, translation = lie.retract(state.rotation, state.translation,
                                             delta[:poses].reshape(-1, POSE_DOF))

@@ -7,9 +7,7 @@ Conventions: camera frame is OpenCV optical (x right, y down, z forward); quater
 from typing import Final
 
 import numpy as np
-import roma
 from scipy.spatial.transform import Rotation
-import torch
 
 #: Smallest depth (m) at which a point is projected (paper appendix A floors depth at 1 cm).
 MIN_PROJECTION_DEPTH_M: Final = 0.01
@@ -70,6 +68,9 @@ def similarity_transform(source: np.ndarray, target: np.ndarray,
         (scale (...,), rotation (..., 3, 3), translation (..., 3)).
 
     """
+    import roma  # torch stays out of processes that never align (the BA process)
+    import torch
+
     x = torch.as_tensor(np.asarray(source, dtype=np.float64))
     y = torch.as_tensor(np.asarray(target, dtype=np.float64))
     if with_scale:

@@ -51,6 +51,7 @@ import contextlib
 import dataclasses
 import threading
 
+from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.datatypes import HandState
@@ -171,6 +172,9 @@ class StreamingEngine:
             ba_backend = InProcessBA(self.config.bundle_adjustment,
                                      self.config.pose_track.capacity)
         self._ba = ba_backend
+        pool = (self.config.bundle_adjustment or BAConfig()).pool
+        self._ba_interval_ns = round(1e9 * pool.min_interval_s)
+        self._ba_last_ns: int | None = None  # stamp of the last keyframe offered to BA
         self._anchor_frames = self.model.geometry.config.memory.anchor_frames
         detection = self.config.detection
         self._detection = self.model.hand_detection(detection.presence_threshold,
@@ -440,6 +444,7 @@ class StreamingEngine:
             self._drain()
             if self._ba is not None:
                 self._ba.reset()
+                self._ba_last_ns = None
             if self._detector is None:
                 self._hand_source.reset()
             else:  # in its thread: a detection started ahead meanwhile may be running there
@@ -740,7 +745,9 @@ class StreamingEngine:
         if frame.found().scene_cut or state == 'reinitialised':
             self._output.new_scene()
         to_ba = (self._ba is not None and frame.keyframe and frame.source_image is not None
-                 and record.depth is not None)
+                 and record.depth is not None
+                 and (self._ba_last_ns is None
+                      or frame.timestamp_ns - self._ba_last_ns >= self._ba_interval_ns))
         kept = record.depth is not None and frame.keyframe and (to_ba or self.config.depth_maps)
         track.observe_scale(*self._scale_samples(record, kept))
         self._fix_intrinsics(record)
@@ -751,6 +758,7 @@ class StreamingEngine:
         if self._ba is not None:
             self._ba.fold_in(track)
             if to_ba:
+                self._ba_last_ns = frame.timestamp_ns
                 self._ba.offer(keyframe_input(frame.index, frame.timestamp_ns,
                                               frame.source_image, depth,
                                               track.scaled(frame.index), record.intrinsics,

@@ -15,6 +15,7 @@ from infinihand_ros.ba.process import BAProcessError
 from infinihand_ros.ba.process import receive_message
 from infinihand_ros.ba.process import send_message
 import numpy as np
+from process_probes import heavy_modules
 import pytest
 import torch
 
@@ -78,6 +79,15 @@ def test_settings_stay_in_the_ba_process() -> None:
     assert torch.get_num_threads() == torch_threads and cv2.getNumThreads() == cv2_threads
     assert os.getpriority(os.PRIO_PROCESS, threading.get_native_id()) == own_nice
     assert set(_nice_values(os.getpid())) == {own_nice}  # no thread here was niced
+
+
+def test_the_ba_process_imports_only_what_ba_needs() -> None:
+    """Neither torch nor the caller's main module is imported in the child (fast start)."""
+    process = BAProcess(BAConfig(), heavy_modules)
+    try:
+        assert process.call(None) == []
+    finally:
+        process.close()
 
 
 def test_a_failed_call_reports_the_child_traceback_and_the_process_lives_on() -> None:

@@ -244,6 +244,21 @@ def test_a_remote_backend_gets_each_keyframe_once_with_its_scaled_pose(model,
     assert all(result.raw_camera_pose is not None for result in results)
 
 
+def test_keyframes_reach_ba_no_closer_than_the_pools_interval(model, frames: list) -> None:
+    """A keyframe too soon after the last one offered skips BA, and its depth stays uncomputed."""
+    interval = 2.5 * (frames[1].timestamp_ns - frames[0].timestamp_ns)
+    ba = BAConfig(pool=PoolConfig(min_interval_s=interval / 1e9))
+    remote = RemoteBA()
+    with StreamingEngine(replace(CONFIG, bundle_adjustment=ba), model,
+                         ba_backend=remote) as engine:
+        results = _run(engine, frames)
+        offered = [k.frame_id for k in remote.take_keyframes()]
+    keyframes = [r.frame_index for r in results if r.is_keyframe]
+    assert keyframes == [0, 1, 2, 4, 6]
+    assert offered == [0, 4]  # 1 and 2 follow 0 too soon, 6 follows 4 too soon
+    assert [r.frame_index for r in results if r.depth is not None] == offered
+
+
 def test_engine_results_equal_a_direct_model_call(model, frames: list) -> None:
     """The engine's camera-space hands and raw poses are the shared forward's, frame by frame.
 
