@@ -37,6 +37,7 @@ from infinihand_ros.eval.cli import mean_pose_joints
 from infinihand_ros.eval.cli import save_outputs
 from infinihand_ros.eval.report import markdown_tables
 from infinihand_ros.eval.runner import evaluate
+from infinihand_ros.eval.runner import Evaluation
 from infinihand_ros.eval.sequences import open_eval_sequence
 from infinihand_ros.synth import cli
 from infinihand_ros.synth.sample_bag import load_sample_settings
@@ -44,6 +45,7 @@ from infinihand_ros.synth.sample_bag import sample_bag_path
 from infinihand_ros.synth.sample_bag import sample_sequence
 from infinihand_ros.tools import live_demo
 from infinihand_ros.tools.live_demo import LiveDemoOptions
+from infinihand_ros.tools.live_demo import LiveDemoReport
 import numpy as np
 
 #: Largest ground-truth difference (m) between the bag and a fresh generation that still counts
@@ -93,10 +95,10 @@ def describe_bag(bag: Path) -> str:
     return '\n'.join(lines)
 
 
-def evaluate_bag(bag: Path, config: EngineConfig, out: Path) -> str:
-    """Run the engine over the bag, evaluate it against the bag's ground truth; return a report.
+def evaluate_bag(bag: Path, config: EngineConfig, out: Path) -> tuple[str, Evaluation]:
+    """Run the engine over the bag, evaluate it against the bag's ground truth.
 
-    Writes the prediction file and the plots into ``out``.
+    Writes the prediction file and the plots into ``out``; returns the report and the scores.
     """
     sequence = open_eval_sequence(bag)
     mean_pose, mean_pose_source = mean_pose_joints(None, config, [sequence])
@@ -108,7 +110,22 @@ def evaluate_bag(bag: Path, config: EngineConfig, out: Path) -> str:
         f'Engine ({checkpoint}, {config.mode} mode, bundle adjustment {ba}, final trajectory) '
         'on the bag: '
         f'{evaluation.ours["frames/s"]:.1f} frames/s; evaluation against its ground truth '
-        f'(mean pose: {mean_pose_source}):', '', markdown_tables(evaluation)])
+        f'(mean pose: {mean_pose_source}):', '', markdown_tables(evaluation)]), evaluation
+
+
+def side_by_side(offline: Evaluation, live: LiveDemoReport) -> str:
+    """Return a table: the offline full system beside the live node, and the baselines."""
+    rows = [('offline: engine + BA, final trajectory', offline.ours),
+            (f'live node at {LIVE_RATE_HZ:g} Hz, as published '
+             f'({live.figures.outputs} of {live.figures.images} frames)', live.ours),
+            ('still camera', offline.baselines['static-camera']),
+            ('constant skeleton (mean hand)', offline.baselines['mean-hand'])]
+    lines = ['| on the sample bag | W-MPJPE (mm) | ATE (m) | RPE-r (deg) |', '|---|---|---|---|']
+    for name, scores in rows:
+        cells = [scores.get(key, float('nan')) for key in ('W-MPJPE', 'ATE', 'RPE-r')]
+        lines.append(f'| {name} | ' + ' | '.join(
+            '-' if cell != cell else f'{cell:.4g}' for cell in cells) + ' |')
+    return '\n'.join(lines)
 
 
 def validate_out(out: Path) -> None:
@@ -145,9 +162,9 @@ def run(out: Path, bag: Path) -> str:
                                           'replaces this directory on its next run.\n')
         (work / ENGINE_CONFIG_FILE).write_text(dump_config(engine_config, ENGINE_SECTION),
                                                encoding='utf-8')
-        evaluation = evaluate_bag(bag, engine_config, work / EVAL_DIR)
+        evaluation, offline = evaluate_bag(bag, engine_config, work / EVAL_DIR)
         live = live_demo.run(LiveDemoOptions(work / LIVE_DIR, LIVE_RATE_HZ, 'none', 0.0), bag)
-        live = live.replace(str(work), str(out))  # name the final paths, not the staging ones
+        live_text = live.text.replace(str(work), str(out))  # the final paths, not the staging
     if fresh_cameras.shape != cameras.shape:
         raise InfiniHandError(f'{bag} holds {len(cameras)} frames but its settings give '
                               f'{len(fresh_cameras)}; regenerate it with '
@@ -177,7 +194,10 @@ def run(out: Path, bag: Path) -> str:
         '',
         f'Live path (replay at {LIVE_RATE_HZ:g} Hz -> estimator node -> record), in '
         f'{out / LIVE_DIR}:',
-        live,
+        live_text,
+        '',
+        'Offline and live side by side:',
+        side_by_side(offline, live),
     ]
     return '\n'.join(report)
 

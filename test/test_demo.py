@@ -32,6 +32,11 @@ def test_demo_regenerates_the_sample_bag_and_evaluates(tmp_path: Path,
     assert 'Live estimator (bundle adjustment none' in report
     assert '150 images replayed at 10 Hz' in report and '(150 received)' in report
     assert report.count('**World space**') == 2
+    side_by_side = report[report.index('Offline and live side by side:'):]
+    for row in ('| offline: engine + BA, final trajectory | ',
+                '| live node at 10 Hz, as published (', '| still camera | ',
+                '| constant skeleton (mean hand) | '):
+        assert row in side_by_side
     assert (out / demo.LIVE_DIR / 'eval' / 'sample_bag.npz').is_file()
     assert str(out / demo.LIVE_DIR) in report and '/.demo' not in report
     assert not (out / 'stale.txt').exists()

@@ -123,8 +123,17 @@ def figures_lines(figures: LiveFigures, options: LiveDemoOptions, domain_id: int
     ]
 
 
-def run(options: LiveDemoOptions, bag: Path) -> str:
-    """Run the live demo into ``options.out``; return the report it prints."""
+@dataclass(frozen=True)
+class LiveDemoReport:
+    """What a live demo run found: the report it prints, its scores and the node's figures."""
+
+    text: str
+    ours: dict[str, float]
+    figures: LiveFigures
+
+
+def run(options: LiveDemoOptions, bag: Path) -> LiveDemoReport:
+    """Run the live demo into ``options.out``; return its report."""
     out = options.out
     full = open_eval_sequence(bag)
     stamps = replayed_stamps(bag, options.seconds)
@@ -136,14 +145,16 @@ def run(options: LiveDemoOptions, bag: Path) -> str:
     mean_pose, mean_pose_source = mean_pose_joints(None, load_engine_config(), [sequence])
     evaluation = evaluate_recorded(recorded, sequence, mean_pose)
     save_outputs(out / EVAL_DIR, evaluation.sequences[0], sequence)
-    return '\n'.join([
-        *figures_lines(live_figures(recorded, len(stamps)), options, domain_id),
+    figures = live_figures(recorded, len(stamps))
+    return LiveDemoReport('\n'.join([
+        *figures_lines(figures, options, domain_id),
         f'  recorded outputs: {spec.recorded}; logs: {spec.logs}', '',
         f"Evaluation of the recorded outputs against the bag's ground truth "
         f'({sequence.truth.num_frames} frames; mean pose: {mean_pose_source}):', '',
         markdown_tables(evaluation), 'Camera-frame joints are the published world joints '
         'mapped by the published camera pose; a published hand counts as detected.',
-        missing_note(), '', f'Prediction file and plots: {out / EVAL_DIR}'])
+        missing_note(), '', f'Prediction file and plots: {out / EVAL_DIR}']),
+        evaluation.ours, figures)
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -151,7 +162,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.basicConfig(level=logging.INFO, format='%(levelname)s %(name)s: %(message)s')
     options = parse_args(argv)
     try:
-        print(run(options, sample_bag_path()))
+        print(run(options, sample_bag_path()).text)
     except (InfiniHandError, OSError) as exc:
         print(f'live_demo: {exc}', file=sys.stderr)
         return EXIT_FAILED
