@@ -170,10 +170,11 @@ class EngineConfig:
         depth_maps: give every keyframe's metric depth map in ``FrameResult.depth`` (the depth
             head then runs on every keyframe); False: only keyframes sent to BA carry one, and
             the depth head runs only where a depth is used.
-        static_intrinsics_frames: with ``camera_motion: static`` and hands found outside the
-            model, frames without given intrinsics take the median of the intrinsics the model
-            predicted on the stream's first this-many frames, and the geometry branch runs on
-            those frames only (it has nothing else to give a fixed camera); 0: on every frame.
+        lens_frames: one lens per stream, with hands found outside the model and no given
+            intrinsics: a moving camera holds the median of the intrinsics the model predicted
+            on its first block (the anchor frames); a fixed camera the median over its first
+            this-many frames, and runs the geometry branch on those only (it has nothing else
+            to give it); 0: intrinsics predicted on every frame (a zoom lens).
 
     """
 
@@ -194,7 +195,7 @@ class EngineConfig:
     output: OutputConfig = field(default_factory=OutputConfig)
     hands: HandsConfig = field(default_factory=HandsConfig)
     depth_maps: bool = False
-    static_intrinsics_frames: int = 16
+    lens_frames: int = 16
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -208,7 +209,7 @@ class EngineConfig:
         require_at_least('engine', 1, window=self.window,
                          keyframe_interval=self.keyframe_interval,
                          geometry_interval=self.geometry_interval)
-        require_at_least('engine', 0, static_intrinsics_frames=self.static_intrinsics_frames)
+        require_at_least('engine', 0, lens_frames=self.lens_frames)
         require_at_least('engine', 0, geometry_lag=self.geometry_lag)
         if self.geometry_interval > 1 and self.geometry_lag >= self.geometry_interval:
             raise ConfigError(f'engine.geometry_lag ({self.geometry_lag}) must be below '

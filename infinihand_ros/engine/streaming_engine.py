@@ -209,7 +209,7 @@ class StreamingEngine:
         self._last_stamp: int | None = None
         self._accepted_stamp: int | None = None  # last stamp of a block the model accepted
         self._source_size: tuple[int, int] | None = None  # (width, height) of the stream
-        self._predicted: list[Intrinsics] = []  # a fixed camera's first predicted intrinsics
+        self._predicted: list[Intrinsics] = []  # the stream's first predicted intrinsics
         self._fixed_intrinsics: Intrinsics | None = None  # ... and their median, once known
         self._counts = {'frames_with_depth': 0, 'frames_without_geometry': 0,
                         'geometry_failures': 0}
@@ -497,7 +497,7 @@ class StreamingEngine:
         """
         stamp = check_timestamp(timestamp_ns, self._last_stamp)
         image = check_image(image)
-        intrinsics = check_intrinsics(intrinsics, image)
+        intrinsics = check_intrinsics(intrinsics, image) or self._fixed_intrinsics
         size = (image.shape[1], image.shape[0])
         if self._source_size not in (None, size):
             raise InputError(f"image: {size[0]}x{size[1]} px, but this stream's frames are "
@@ -521,17 +521,16 @@ class StreamingEngine:
 
         A fixed camera whose hands come from outside the model needs the geometry branch only
         for intrinsics: not when they are given, or once the first frames' predictions fixed
-        them (``static_intrinsics_frames``). Frames never overtake held-back ones.
+        them (``lens_frames``). Frames never overtake held-back ones.
         """
         return (self.static and not self._hand_source.uses_hand_branch and not self._pending
-                and (intrinsics is not None or self._fixed_intrinsics is not None))
+                and intrinsics is not None)
 
     def _without_geometry(self, frame: PreparedFrame) -> list[CameraSpaceFrame]:
         """Return a fixed camera's frame record with its source's hands, no model run."""
         self._counts['frames_without_geometry'] += 1
-        intrinsics = frame.intrinsics or self._fixed_intrinsics
-        hands = self._hand_source.camera_hands(frame.found(), (), intrinsics)
-        return [CameraSpaceFrame(frame, np.eye(4), intrinsics, hands, None, None)]
+        hands = self._hand_source.camera_hands(frame.found(), (), frame.intrinsics)
+        return [CameraSpaceFrame(frame, np.eye(4), frame.intrinsics, hands, None, None)]
 
     def _route(self, frame: PreparedFrame) -> str:
         """Return how a checked frame goes on.
@@ -640,9 +639,27 @@ class StreamingEngine:
         if record.depth.computed:
             self._counts['frames_with_depth'] += 1
 
+    def _hold_lens(self, frames: list[PreparedFrame], used: torch.Tensor) -> torch.Tensor:
+        """Return a moving camera's first block's intrinsics as one lens, held for the stream.
+
+        Its frames' predictions (model size) are replaced by their median, which the frames
+        after it are given: one lens, so a pose is never re-measured through another focal
+        length (a still camera would seem to move). Unchanged with given intrinsics, a fixed
+        camera (``_fix_intrinsics``), the paper's hand branch or ``lens_frames`` 0.
+        """
+        if (self._fixed_intrinsics is not None or self.static or self.config.lens_frames == 0
+                or self._hand_source.uses_hand_branch
+                or any(frame.intrinsics is not None for frame in frames)):
+            return used
+        median = np.median(used[0].double().cpu().numpy(), axis=0)
+        height, width = frames[0].pixels.shape[-2:]
+        self._fixed_intrinsics = frames[0].mapping.intrinsics_to_source(
+            Intrinsics.from_matrix(median, width, height))
+        return torch.as_tensor(median, dtype=used.dtype).expand_as(used[0])[None].clone()
+
     def _fix_intrinsics(self, record: CameraSpaceFrame) -> None:
-        """Collect a fixed camera's predicted intrinsics; fix their median once enough came."""
-        wanted = self.config.static_intrinsics_frames
+        """Collect a fixed camera's predicted intrinsics; hold their median once enough came."""
+        wanted = self.config.lens_frames
         if (record.frame.intrinsics is not None or self._fixed_intrinsics is not None
                 or wanted == 0 or not self.static or self._hand_source.uses_hand_branch):
             return
@@ -676,6 +693,7 @@ class StreamingEngine:
             raise ModelOutputError(f'{self._checkpoint_name()}: {exc}') from exc
         self._accepted_stamp = frames[-1].timestamp_ns
         self._owed_failed = False
+        used = self._hold_lens(frames, used)
         if self._decoder is None:
             future: Future = _done(self._hands(images, geometry, poses, used, frames))
         else:

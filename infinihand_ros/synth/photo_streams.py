@@ -6,6 +6,7 @@
 - ``rotation_stream``: views from cameras turned about the photo's centre (exact pure rotation).
 - ``pasted_stream``: a still camera with a patch (a hand and arm, ``hand_and_arm_patch``) moving
   across the photo.
+- ``as_webcam``: any of these with a webcam's sensor noise and JPEG compression, new every frame.
 """
 
 from collections.abc import Sequence
@@ -88,6 +89,23 @@ def pasted_stream(background: np.ndarray, patch: np.ndarray, corners: np.ndarray
         image[y0:y0 + height, x0:x0 + width] = patch
         frames.append(CropFrame(image, int(index * 1e9 / fps), intrinsics))
     return frames
+
+
+def as_webcam(frames: Sequence[CropFrame], noise_sigma: float = 2.0, jpeg_quality: int = 85,
+              seed: int = 0) -> list[CropFrame]:
+    """Return ``frames`` with fresh Gaussian sensor noise (sigma in 8-bit levels) and JPEG.
+
+    A real still camera never delivers the same pixels twice; the cameras stay exact.
+    """
+    rng = np.random.default_rng(seed)
+    out = []
+    for frame in frames:
+        noisy = frame.rgb + rng.normal(0.0, noise_sigma, frame.rgb.shape)
+        encoded = cv2.imencode('.jpg', np.clip(noisy, 0, 255).astype(np.uint8)[..., ::-1],
+                               [cv2.IMWRITE_JPEG_QUALITY, jpeg_quality])[1]
+        rgb = cv2.imdecode(encoded, cv2.IMREAD_COLOR)[..., ::-1].copy()
+        out.append(CropFrame(rgb, frame.timestamp_ns, frame.intrinsics))
+    return out
 
 
 def hand_and_arm_patch(photos: Sequence[np.ndarray], margin_px: int = 20) -> np.ndarray | None:

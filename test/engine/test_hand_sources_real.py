@@ -221,7 +221,7 @@ def test_a_fixed_camera_with_mediapipe_hands_runs_no_geometry_where_intrinsics_a
     """camera_motion static + MediaPipe: the geometry branch only predicts missing intrinsics.
 
     Given intrinsics: no frame runs it, and the hands are a moving-camera run's (camera
-    frame). Without: the first ``static_intrinsics_frames`` frames predict them and their
+    frame). Without: the first ``lens_frames`` frames predict them and their
     median holds for the rest.
     """
     _, frames, _ = crop_video
@@ -236,7 +236,7 @@ def test_a_fixed_camera_with_mediapipe_hands_runs_no_geometry_where_intrinsics_a
             np.testing.assert_array_equal(same.joints_world, same.joints_cam)
     warmup = 4
     predicted, statistics = _stream(frames, intrinsics=False, camera_motion='static',
-                                    static_intrinsics_frames=warmup)
+                                    lens_frames=warmup)
     assert statistics['frames_without_geometry'] == len(frames) - warmup
     median = np.median([[k.fx, k.fy, k.cx, k.cy] for k in
                         (result.intrinsics for result in predicted[:warmup])], axis=0)
