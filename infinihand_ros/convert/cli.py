@@ -20,6 +20,7 @@ from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.dataset_writer import DatasetWriter
 from infinihand_ros.convert.image_fit import RESIZE_MODES
 from infinihand_ros.convert.inputs import discover_inputs
+from infinihand_ros.convert.inputs import IMAGES
 from infinihand_ros.convert.inputs import InputSource
 from infinihand_ros.convert.ray_run import convert_on_ray
 from infinihand_ros.convert.ray_run import RayStartError
@@ -53,16 +54,20 @@ def build_parser() -> argparse.ArgumentParser:
         description='Convert rosbag2/ROS 1 bags and videos into a LeRobot v3.0 dataset of hand '
                     'demonstrations (one episode per input or per time window).')
     parser.add_argument('inputs', nargs='+', type=Path, metavar='INPUT',
-                        help='bag directory, .mcap/.bag file, video, or folder of them')
+                        help='bag directory, .mcap/.bag file, video (GIF included), image '
+                             'sequence (a folder of JPEG/PNG frames), or folder of them')
     parser.add_argument('--output', required=True, type=Path, help='dataset directory (new, '
                         'or one written by bag_to_dataset: it is resumed and extended)')
     parser.add_argument('--fps', type=int, help='output frame rate in Hz (default 10)')
     parser.add_argument('--task', help='task string of every episode (default: the sidecar '
                         '<input>.task.txt, else "demonstration")')
     parser.add_argument('--image-topic', help='image topic of the bags (default: auto-detect)')
+    parser.add_argument('--input-fps', type=float, metavar='HZ',
+                        help='rate of image-sequence inputs (folders of JPEG/PNG frames, '
+                             'sorted by name; their files carry no times)')
     parser.add_argument('--episode-seconds', type=float,
                         help='split inputs into episodes of at most this many seconds')
-    parser.add_argument('--intrinsics', help='fx,fy,cx,cy,width,height of video inputs '
+    parser.add_argument('--intrinsics', help='fx,fy,cx,cy,width,height of video and image inputs '
                         '(default: predicted by the model)')
     parser.add_argument('--video-size', metavar='WxH', help="size of the dataset's videos; "
                         'inputs of another size are fitted to it, intrinsics mapped (default: '
@@ -137,8 +142,18 @@ def validate_args(args: argparse.Namespace) -> tuple[ConvertConfig, RunOptions]:
         check_writable_location(args.output, '--output')
     except InfiniHandError as exc:
         raise UsageError(str(exc)) from exc
+    if args.input_fps is not None and not args.input_fps > 0:
+        raise UsageError(f'--input-fps {args.input_fps}: expected a rate above 0 (Hz)')
     return config, RunOptions(args.output, args.image_topic, _intrinsics(args.intrinsics),
-                              progress=not args.quiet)
+                              progress=not args.quiet, input_fps=args.input_fps)
+
+
+def _check_input_rates(sources: list[InputSource], options: RunOptions) -> None:
+    """Refuse image sequences without ``--input-fps`` before anything is converted."""
+    untimed = [str(source.path) for source in sources if source.kind == IMAGES]
+    if untimed and options.input_fps is None:
+        raise UsageError(f'image sequences carry no times ({", ".join(untimed)}); pass the rate '
+                         'they were taken at with --input-fps (e.g. --input-fps 30)')
 
 
 def _finish(reports: list[EpisodeReport], output: Path) -> None:
@@ -173,8 +188,9 @@ def main(argv: list[str] | None = None) -> int:
         return EXIT_USAGE
     sources, failures = discover_inputs(args.inputs)
     try:
+        _check_input_rates(sources, options)
         config = resolve_video_size(config, writer.video_size, sources, options)
-    except InfiniHandError as exc:
+    except (UsageError, InfiniHandError) as exc:
         print(f'bag_to_dataset: error: {exc}', file=sys.stderr)
         return EXIT_USAGE
     reports = [EpisodeReport(str(f.path), status=FAILED, error=f.reason) for f in failures]

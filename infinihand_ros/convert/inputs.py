@@ -1,22 +1,26 @@
 """Input discovery: command-line paths to the bags and videos to convert, in a stable order.
 
 A path is a rosbag2 bag directory (``metadata.yaml`` plus MCAP or sqlite3 files, split files
-included), a bare ``.mcap`` file, a ROS 1 ``.bag`` file, a video file, or a folder searched
-recursively for those (sorted by path). A storage file inside a bag directory stands for its
-bag. Paths that name nothing usable are returned as failures with the reason.
+included), a bare ``.mcap`` file, a ROS 1 ``.bag`` file, a video file (an animated GIF
+included), an image sequence (a folder with JPEG or PNG files directly inside: one episode), or
+a folder searched recursively for those (sorted by path). A storage file inside a bag directory
+stands for its bag. Paths that name nothing usable are returned as failures with the reason.
 """
 
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Final
 
+from infinihand_ros.convert.image_frames import image_files
+
 #: The file rosbag2 writes into every bag directory.
 BAG_METADATA: Final = 'metadata.yaml'
 #: Storage files read as bags on their own (MCAP, ROS 1) or through their directory (sqlite3).
 BAG_SUFFIXES: Final = ('.mcap', '.db3', '.bag')
-VIDEO_SUFFIXES: Final = ('.mp4', '.mkv', '.mov', '.avi', '.webm')
+VIDEO_SUFFIXES: Final = ('.mp4', '.mkv', '.mov', '.avi', '.webm', '.gif')
 BAG: Final = 'bag'
 VIDEO: Final = 'video'
+IMAGES: Final = 'images'
 
 
 @dataclass(frozen=True)
@@ -24,8 +28,9 @@ class InputSource:
     """One input to convert.
 
     Attributes:
-        path: resolved path of the bag (directory or file) or the video file.
-        kind: 'bag' or 'video'.
+        path: resolved path of the bag (directory or file), the video file or the folder of
+            images.
+        kind: 'bag', 'video' or 'images'.
 
     """
 
@@ -56,8 +61,12 @@ def _classify_file(path: Path) -> InputSource | None:
 
 
 def _search_folder(folder: Path) -> list[InputSource]:
-    """Return the bags and videos below ``folder`` (bag directories are not entered)."""
-    found: list[InputSource] = []
+    """Return the inputs below ``folder`` (bag directories are not entered).
+
+    A folder with image files directly inside is an image sequence (its subfolders are still
+    searched).
+    """
+    found: list[InputSource] = [InputSource(folder, IMAGES)] if image_files(folder) else []
     for child in sorted(folder.iterdir()):
         if _is_bag_dir(child):
             found.append(InputSource(child, BAG))
@@ -91,8 +100,9 @@ def discover_inputs(paths: list[Path]) -> tuple[list[InputSource], list[InputFai
         elif path.is_dir():
             found = _search_folder(path)
             if not found:
-                failures.append(InputFailure(path, 'folder holds no rosbag2 bag, .mcap, .bag or '
-                                                   f'video file ({", ".join(VIDEO_SUFFIXES)})'))
+                failures.append(InputFailure(path, 'folder holds no rosbag2 bag, .mcap, .bag, '
+                                                   f'video file ({", ".join(VIDEO_SUFFIXES)}) '
+                                                   'or image sequence (.jpg, .png files)'))
             sources.extend(found)
         else:
             source = _classify_file(path)

@@ -29,6 +29,8 @@ from infinihand_ros.convert.frame_log import FrameLog
 from infinihand_ros.convert.image_fit import FrameFitter
 from infinihand_ros.convert.image_fit import needs_fit
 from infinihand_ros.convert.image_fit import parse_video_size
+from infinihand_ros.convert.image_frames import read_image_frames
+from infinihand_ros.convert.inputs import IMAGES
 from infinihand_ros.convert.inputs import InputSource
 from infinihand_ros.convert.inputs import VIDEO
 from infinihand_ros.convert.provenance import provenance_of
@@ -60,7 +62,8 @@ class RunOptions:
     Attributes:
         output: the dataset directory.
         image_topic: the bags' image topic, or None to auto-detect it per bag.
-        intrinsics: intrinsics of video inputs, or None (predicted).
+        intrinsics: intrinsics of video inputs and image sequences, or None (predicted).
+        input_fps: the rate image sequences were taken at (their files carry no times).
         progress: show progress bars.
 
     """
@@ -69,6 +72,7 @@ class RunOptions:
     image_topic: str | None = None
     intrinsics: Intrinsics | None = None
     progress: bool = True
+    input_fps: float | None = None
 
 
 class EpisodeSink(Protocol):
@@ -206,6 +210,8 @@ def read_source_frames(source: InputSource, options: RunOptions,
     """Return the stream of ``source``'s frames as read (before any check)."""
     if source.kind == VIDEO:
         return read_video_frames(source.path, options.intrinsics, log)
+    if source.kind == IMAGES:
+        return read_image_frames(source.path, options.input_fps, options.intrinsics, log)
     return read_bag_frames(source.path, options.image_topic, log)
 
 

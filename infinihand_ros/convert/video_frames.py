@@ -48,20 +48,21 @@ def read_video_frames(path: Path, intrinsics: Intrinsics | None,
                     log.skip(NO_PTS)
                     continue
                 rgb = frame.to_ndarray(format='rgb24')
-                yield SourceFrame(round(frame.time * NS_PER_S), rgb,
-                                  _matching(intrinsics, rgb.shape[1], rgb.shape[0], path, log))
+                yield SourceFrame(round(frame.time * NS_PER_S), rgb, matching_intrinsics(
+                    intrinsics, rgb.shape[1], rgb.shape[0], path, log))
         except av.FFmpegError as exc:
             raise InputError(f'video {path}: decoding failed after {log.read} frames ({exc}); '
                              'the file may be truncated or corrupt') from exc
 
 
-def _matching(intrinsics: Intrinsics | None, width: int, height: int, path: Path,
-              log: FrameLog) -> Intrinsics | None:
+def matching_intrinsics(intrinsics: Intrinsics | None, width: int, height: int, path: Path,
+                        log: FrameLog) -> Intrinsics | None:
+    """Return the given intrinsics where they fit a width x height frame, else None (counted)."""
     if intrinsics is None:
-        log.warn('video without intrinsics: predicted by the model')
+        log.warn('no intrinsics given (--intrinsics): predicted by the model')
         return None
     if (intrinsics.width, intrinsics.height) != (width, height):
-        log.warn(f'--intrinsics are for {intrinsics.width}x{intrinsics.height}, video {path.name} '
+        log.warn(f'--intrinsics are for {intrinsics.width}x{intrinsics.height}, {path.name} '
                  f'is {width}x{height}: intrinsics predicted')
         return None
     return intrinsics

@@ -4,6 +4,7 @@ from pathlib import Path
 
 from infinihand_ros.convert.inputs import BAG
 from infinihand_ros.convert.inputs import discover_inputs
+from infinihand_ros.convert.inputs import IMAGES
 from infinihand_ros.convert.inputs import VIDEO
 
 
@@ -42,3 +43,22 @@ def test_failures_name_path_and_reason(tmp_path: Path) -> None:
     assert reasons['missing'] == 'does not exist'
     assert 'holds no rosbag2 bag' in reasons['empty']
     assert 'not a bag' in reasons['x.txt']
+
+
+def test_image_sequences_and_gifs(tmp_path: Path) -> None:
+    """A folder with images directly inside is one episode; its subfolders are still searched."""
+    frames = tmp_path / 'rgb_frames' / 'P01_01'
+    frames.mkdir(parents=True)
+    for name in ('frame_0000000002.jpg', 'frame_0000000001.JPG'):
+        (frames / name).write_bytes(b'')
+    nested = frames / 'takes'
+    nested.mkdir()
+    (nested / 'a.png').write_bytes(b'')
+    gif = tmp_path / 'rgb_frames' / 'clip.gif'
+    gif.write_bytes(b'')
+    sources, failures = discover_inputs([tmp_path / 'rgb_frames'])
+    assert failures == []
+    assert [(s.path, s.kind) for s in sources] == [
+        (frames, IMAGES), (nested, IMAGES), (gif, VIDEO)]
+    assert [(s.path, s.kind) for s in discover_inputs([frames])[0]] == [
+        (frames, IMAGES), (nested, IMAGES)]
