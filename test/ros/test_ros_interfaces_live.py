@@ -3,9 +3,10 @@
 The sample bag is replayed into the installed estimator beside the ``retargeting_stub``
 (following the right hand) and everything is recorded. ``/tf`` must hold, at each image's
 stamp, the camera pose and the wrist poses the standard topics published; ``~/hands`` the same
-camera and hands; the stub the wrist-frame landmarks. The recorded ``~/hands`` and ``/tf`` are
-then replayed onto the same topics with no estimator running: the stub reads them as live and
-answers as before, and ``~/hands`` recorded again equals the first recording.
+camera, hands, wrist frames and wrist-frame joints; the stub the wrist-frame landmarks. The
+recorded ``~/hands`` and ``/tf`` are then replayed onto the same topics with no estimator
+running: the stub reads them as live and answers as before, and ``~/hands`` recorded again
+equals the first recording.
 """
 
 from pathlib import Path
@@ -168,21 +169,26 @@ def test_tf_hands_and_a_consumer_live_and_replayed(tmp_path: Path) -> None:
     frames = _by_stamp(live[HANDS])
     assert sorted(frames) == sorted(poses)
     landmarks = _by_stamp(live[f'{NODE}/hands/right/landmarks'])
+    in_wrist = _by_stamp(live[f'{NODE}/hands/right/wrist_frame_landmarks'])
+    right_wrists = _by_stamp(live[f'{NODE}/hands/right/wrist_pose'])
     for stamp, frame in frames.items():
         np.testing.assert_allclose(_pose(frame.camera_pose), _pose(poses[stamp].pose),
                                    atol=EXACT)
-        right = [hand for hand in frame.hands if hand.side == RIGHT and hand.has_world]
+        right = [hand for hand in frame.hands if hand.side == RIGHT and hand.has_wrist_frame]
         assert len(right) == int(len(landmarks[stamp].poses) == 21)
         if right:
             np.testing.assert_allclose(_points(right[0].joints_world),
                                        _landmarks(landmarks[stamp]), atol=EXACT)
+            np.testing.assert_allclose(_points(right[0].joints_wrist),
+                                       _landmarks(in_wrist[stamp]), atol=EXACT)
+            np.testing.assert_allclose(_pose(right[0].wrist_frame_world),
+                                       _pose(right_wrists[stamp].pose), atol=EXACT)
 
     stub_joints = _by_stamp(live[f'{STUB}/joints'])
-    expected = _by_stamp(live[f'{NODE}/hands/right/wrist_frame_landmarks'])
     assert len(stub_joints) >= 3
     for stamp, joints in stub_joints.items():
         assert joints.header.frame_id == 'right_wrist'
-        np.testing.assert_allclose(_landmarks(joints), _landmarks(expected[stamp]), atol=1e-9)
+        np.testing.assert_allclose(_landmarks(joints), _landmarks(in_wrist[stamp]), atol=1e-9)
 
     replayed = _recorded(_replay_recorded(tmp_path, env, tmp_path / 'live'))
     store = build_typestore()
