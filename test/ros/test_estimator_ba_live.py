@@ -29,8 +29,8 @@ pytestmark = [pytest.mark.ros, pytest.mark.slow]
 pytest.importorskip('rclpy', reason='rclpy is not importable (source scripts/env.sh)')
 
 READY = 'ready: engine'
-#: The BA worker's child (multiprocessing ``spawn``), as its command line reads.
-BA_CHILD = 'spawn_main'
+#: The BA worker's child (``python -m infinihand_ros.ba.process``), as its command line reads.
+BA_CHILD = 'infinihand_ros.ba.process'
 #: Seconds the worker processes may take to end: a BA call in progress finishes first.
 WORKER_EXIT_S = 120.0
 
