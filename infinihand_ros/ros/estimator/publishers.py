@@ -200,11 +200,11 @@ class OutputPublishers:
             if path is not None:
                 specs.append(path_marker(np.array([pose.position for _, pose in path])))
             self.markers.publish(msg_builders.marker_array_msg(stamp, self.world, specs))
+        if self.transforms is not None:  # first, so a consumer of ~/hands finds its wrist
+            self._publish_transforms(result, hands, camera_frame_id)
         if self.hand_frame is not None:
             self.hand_frame.publish(bytes(self._typestore.serialize_cdr(
                 frame_result_to_msg(self._typestore, result, self.world), HAND_FRAME_MSG)))
-        if self.transforms is not None:
-            self._publish_transforms(result, hands, camera_frame_id)
 
     def _publish_transforms(self, result: FrameResult, hands: dict[int, HandOutput | None],
                             camera_frame_id: str) -> None:
