@@ -1,6 +1,7 @@
 # Two commands do everything on a fresh machine: `make demo` and `make test`.
-# Each creates or refreshes .venv from requirements.txt, builds the package with colcon and sets the
-# environment (scripts/env.sh). Re-running is fast: nothing is reinstalled or rebuilt unless its inputs changed.
+# Each creates or refreshes .venv from requirements.txt, builds the package and its interface packages
+# (msg_schemas: infinihand_msgs, and tf2_msgs where no ROS 2 install provides it) with colcon and sets
+# the environment (scripts/env.sh). Re-running is fast: nothing is reinstalled or rebuilt unless its inputs changed.
 
 SHELL := /bin/bash
 .SHELLFLAGS := -eo pipefail -c
@@ -8,6 +9,8 @@ PYTHON ?= python3
 VENV := .venv
 VENV_STAMP := $(VENV)/.requirements.txt
 BUILD_STAMP := install/.build-stamp
+INTERFACE_SOURCES := msg_schemas/CMakeLists.txt msg_schemas/package.xml \
+  $(wildcard msg_schemas/msg/* msg_schemas/cmake/* msg_schemas/tf2_msgs/* msg_schemas/tf2_msgs/msg/*)
 ENV := source scripts/env.sh &&
 DEMO_OUT ?= out/demo
 PYTEST_ARGS ?=
@@ -32,10 +35,12 @@ $(VENV_STAMP): requirements.txt requirements-nodeps.txt
 	  -r requirements-nodeps.txt
 	cat requirements.txt requirements-nodeps.txt > $(VENV_STAMP)
 
-$(BUILD_STAMP): $(VENV_STAMP) setup.py setup.cfg package.xml $(wildcard config/* msg_schemas/msg/* data/*)
+$(BUILD_STAMP): $(VENV_STAMP) setup.py setup.cfg package.xml $(INTERFACE_SOURCES) \
+  $(wildcard config/* data/*)
 	@# files removed from the source tree leave dangling links that stop colcon: drop them
 	@test ! -d build || find build -xtype l -delete
-	$(ENV) colcon build --base-paths . --symlink-install --event-handlers console_cohesion-
+	$(ENV) colcon build --base-paths . $$(scripts/interface_packages.sh) --symlink-install \
+	  --event-handlers console_cohesion-
 	touch $(BUILD_STAMP)
 
 clean:

@@ -39,6 +39,7 @@ setup(
             f'bag_to_dataset = {PACKAGE_NAME}.convert.cli:console_main',
             f'build_corpus = {PACKAGE_NAME}.data.corpus_cli:main',
             f'live_demo = {PACKAGE_NAME}.tools.live_demo:main',
+            f'retargeting_stub = {PACKAGE_NAME}.ros.retargeting_stub:main',
         ],
     },
 )

@@ -31,6 +31,7 @@ from infinihand_ros.core.hand_conventions import NUM_HAND_POSE_JOINTS
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.hand_conventions import WRIST
+from infinihand_ros.core.output_fields import hand_output
 from infinihand_ros.core.units import NS_PER_S
 import numpy as np
 from rosbags.typesys.store import Typestore
@@ -211,6 +212,8 @@ def hand_to_msg(typestore: Typestore, hand: HandState) -> Msg:
 
     World fields are filled when the hand has both ``mano_world`` and ``joints_world``; the
     wrist pose is then ``joints_world[0]`` with the orientation of ``mano_world.global_orient``.
+    The wrist-frame fields are ``core.output_fields.hand_output``'s (the estimator's /tf wrist
+    frame and its wrist-frame landmarks) where it can form them.
 
     Raises:
         InputError: when exactly one of ``mano_world`` and ``joints_world`` is set.
@@ -229,6 +232,14 @@ def hand_to_msg(typestore: Typestore, hand: HandState) -> Msg:
     else:
         mano_world, joints_world = ManoParams.zeros(), np.zeros((NUM_JOINTS, 3))
         wrist_pose = pose_to_msg(typestore, CameraPose.identity())
+    output = hand_output(hand) if has_mano_world else None
+    if output is None:
+        wrist_frame = pose_to_msg(typestore, CameraPose.identity())
+        joints_wrist = np.zeros((NUM_JOINTS, 3))
+    else:
+        wrist_frame = _pose_msg(typestore, output.wrist_pose.position,
+                                output.wrist_pose.orientation_xyzw)
+        joints_wrist = output.wrist_frame_landmarks
     return _msg_class(typestore, HAND_MSG)(
         side=int(hand.side),
         confidence=float(hand.confidence),
@@ -239,11 +250,14 @@ def hand_to_msg(typestore: Typestore, hand: HandState) -> Msg:
         joints_world=_points_to_msgs(typestore, joints_world),
         joints_2d=np.asarray(hand.joints_2d, dtype=np.float32).reshape(-1),
         box_xyxy=np.asarray(hand.box_xyxy, dtype=np.float32),
-        wrist_pose_world=wrist_pose)
+        wrist_pose_world=wrist_pose,
+        has_wrist_frame=output is not None,
+        wrist_frame_world=wrist_frame,
+        joints_wrist=_points_to_msgs(typestore, joints_wrist))
 
 
 def msg_to_hand(msg: Msg) -> HandState:
-    """Convert an infinihand_msgs/msg/Hand to a HandState (the derived wrist pose is not read).
+    """Convert an infinihand_msgs/msg/Hand to a HandState (the derived wrist fields are not read).
 
     Raises:
         InputError: on an unknown side, a confidence outside [0, 1] or arrays of the wrong size.

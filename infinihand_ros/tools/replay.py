@@ -7,8 +7,9 @@ subscribers with ``use_sim_time``. ``--topics`` selects topics, ``--remap OLD:=N
 them, ``--loop`` plays again and again, ``--wait-for-subscribers S`` waits up to S seconds
 for every topic to have a subscriber before starting, ``--delay S`` sleeps S seconds more and
 ``--playback-duration S`` plays only the first S seconds of bag time (as ``ros2 bag play``).
-Topics whose message type has no Python package here (our own ``infinihand_msgs``) are skipped
-with a note. Exit 0 when done or on SIGINT / SIGTERM, 2 for bad arguments or an unreadable bag.
+Topics whose message type has no Python package here are skipped with a note (``make`` builds
+our ``infinihand_msgs`` and, without a ROS 2 install, ``tf2_msgs``, so the node's outputs
+replay). Exit 0 when done or on SIGINT / SIGTERM, 2 for bad arguments or an unreadable bag.
 """
 
 import argparse

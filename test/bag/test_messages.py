@@ -32,6 +32,7 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
+from infinihand_ros.core.output_fields import hand_output
 from infinihand_ros.core.units import NS_PER_S
 import numpy as np
 import pytest
@@ -116,6 +117,28 @@ def test_wrist_pose_is_wrist_joint_with_global_orientation(
         pose.rotation, geometry.axis_angle_to_matrix(hand.mano_world.global_orient), atol=1e-12)
 
 
+def test_wrist_frame_fields_are_the_estimators_wrist_outputs(
+        typestore: Typestore, make_frame: MakeFrame) -> None:
+    """The wrist frame (the node's /tf wrist pose) and the joints in it, as the node publishes."""
+    hand = make_frame().hand(LEFT)
+    output = hand_output(hand)
+    msg = hand_to_msg(typestore, hand)
+    assert msg.has_wrist_frame
+    pose = msg_to_pose(msg.wrist_frame_world)
+    np.testing.assert_array_equal(pose.translation, output.wrist_pose.position)
+    np.testing.assert_allclose(pose.quaternion_xyzw(), output.wrist_pose.orientation_xyzw,
+                               atol=1e-12)
+    joints = np.array([[p.x, p.y, p.z] for p in msg.joints_wrist])
+    np.testing.assert_array_equal(joints, output.wrist_frame_landmarks)
+    # Back in the world frame through the wrist frame's pose: the world joints.
+    np.testing.assert_allclose(joints @ pose.rotation.T + pose.translation, hand.joints_world,
+                               atol=1e-12)
+    degenerate = dataclasses.replace(hand, joints_world=np.zeros_like(hand.joints_world))
+    msg = hand_to_msg(typestore, degenerate)
+    assert not msg.has_wrist_frame
+    assert all((p.x, p.y, p.z) == (0.0, 0.0, 0.0) for p in msg.joints_wrist)
+
+
 def test_hand_without_world_fields_is_zero_with_identity_wrist(
         typestore: Typestore, make_frame: MakeFrame) -> None:
     msg = hand_to_msg(typestore, make_frame().hand(RIGHT))
@@ -124,6 +147,8 @@ def test_hand_without_world_fields_is_zero_with_identity_wrist(
     assert all((p.x, p.y, p.z) == (0.0, 0.0, 0.0) for p in msg.joints_world)
     assert not np.any(msg.mano_world.betas)
     np.testing.assert_array_equal(msg_to_pose(msg.wrist_pose_world).matrix(), np.eye(4))
+    assert not msg.has_wrist_frame
+    np.testing.assert_array_equal(msg_to_pose(msg.wrist_frame_world).matrix(), np.eye(4))
     decoded = msg_to_hand(msg)
     assert decoded.mano_world is None and decoded.joints_world is None
 

@@ -1,16 +1,16 @@
-"""The estimator's /tf transforms and their broadcast (ros/estimator/publishers.py).
+"""The estimator's /tf transforms, ~/hands and their broadcast (ros/estimator/publishers.py).
 
-``tf2_msgs`` has no PyPI wheel: the broadcast is tested with a stand-in ``tf2_msgs.msg`` module
-(its ``TFMessage`` holds ``transforms`` as the real one does) and the missing case by hiding the
-module; the node is a stand-in that records its publishers and log lines.
+The messages are the generated ``tf2_msgs`` and ``infinihand_msgs`` types (``make`` builds them);
+a missing package is tested by hiding its module. The node is a stand-in that records its
+publishers.
 """
 
 from dataclasses import dataclass
 from dataclasses import field
 import sys
-import types
 
 from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.output_fields import hand_output
@@ -110,94 +110,111 @@ class _Publisher:
 
 
 @dataclass
-class _Logger:
-    warnings: list = field(default_factory=list)
-
-    def warning(self, text: str, **_: object) -> None:
-        self.warnings.append(text)
-
-
-@dataclass
 class _Node:
-    """The two things OutputPublishers asks of its node: publishers and a logger."""
+    """The one thing OutputPublishers asks of its node: publishers."""
 
     publishers: dict = field(default_factory=dict)
-    logger: _Logger = field(default_factory=_Logger)
 
     def create_publisher(self, msg_type: type, topic: str, qos: object) -> _Publisher:
         self.publishers[topic] = _Publisher(msg_type, topic, qos)
         return self.publishers[topic]
 
-    def get_logger(self) -> _Logger:
-        return self.logger
-
-
-@dataclass
-class _TFMessage:
-    transforms: list
-
 
 @pytest.fixture
-def fake_tf2_msgs(monkeypatch: pytest.MonkeyPatch) -> type:
-    """Make ``tf2_msgs.msg`` importable with a stand-in TFMessage; return that class."""
-    module = types.ModuleType('tf2_msgs.msg')
-    module.TFMessage = _TFMessage
-    monkeypatch.setitem(sys.modules, 'tf2_msgs.msg', module)
-    return _TFMessage
+def generated() -> tuple[type, type]:
+    """Return the generated TFMessage and HandFrame classes (skip where not built)."""
+    tf2_msgs = pytest.importorskip('tf2_msgs.msg', reason='tf2_msgs is not built (make)')
+    infinihand_msgs = pytest.importorskip('infinihand_msgs.msg',
+                                          reason='infinihand_msgs is not built (make)')
+    return tf2_msgs.TFMessage, infinihand_msgs.HandFrame
 
 
-def _publish_frames(tf: TFSettings, count: int = 3) -> _Node:
+def _publish_frames(tf: TFSettings, count: int = 3, static_camera: bool = False) -> _Node:
     """Publish ``count`` frames through OutputPublishers on a stand-in node; return it."""
     node = _Node()
-    outputs = publishers.OutputPublishers(node, OutputSwitches(), FRAMES, tf)
+    outputs = publishers.OutputPublishers(node, OutputSwitches(), FRAMES, tf, static_camera)
     for _ in range(count):
         outputs.publish(_result(), 'head_camera_optical', None)
     return node
 
 
-def test_without_tf2_msgs_it_says_so_once_and_publishes_the_rest(
-        monkeypatch: pytest.MonkeyPatch) -> None:
-    """One start-up line naming tf2_msgs and the switch; no /tf; the other outputs go on."""
-    monkeypatch.setitem(sys.modules, 'tf2_msgs.msg', None)  # import fails as without ROS
-    node = _publish_frames(TFSettings())
-    assert len(node.logger.warnings) == 1
-    line = node.logger.warnings[0]
-    assert 'not broadcasting TF on /tf' in line and 'tf2_msgs' in line
-    assert 'tf.enabled:=false' in line
-    assert publishers.TF_TOPIC not in node.publishers
-    assert len(node.publishers['~/camera_pose'].sent) == 3
-    # Wrist-frame landmarks are stamped with the frame the TF would give.
-    landmarks = node.publishers['~/hands/right/wrist_frame_landmarks'].sent[-1]
-    assert landmarks.header.frame_id == 'operator/right_wrist'
+@pytest.mark.parametrize('module,switch', [('tf2_msgs.msg', 'tf.enabled'),
+                                           ('infinihand_msgs.msg', 'outputs.hand_frame')])
+def test_a_missing_message_package_stops_the_start_naming_it_and_its_switch(
+        generated: tuple[type, type], monkeypatch: pytest.MonkeyPatch, module: str,
+        switch: str) -> None:
+    """No silent gap: the error names the package, how to build it and the switch."""
+    monkeypatch.setitem(sys.modules, module, None)  # the import fails as where it is not built
+    with pytest.raises(ConfigError, match=f'{module.split(".")[0]} cannot be imported.*make.*'
+                                          f'{switch}:=false'):
+        _publish_frames(TFSettings())
 
 
-def test_with_tf2_msgs_each_frame_is_one_tf_message(fake_tf2_msgs: type) -> None:
-    """A TFMessage per frame on /tf with tf2_ros's QoS: camera and the seen wrist; no log."""
+def test_each_frame_is_one_tf_message(generated: tuple[type, type]) -> None:
+    """A TFMessage per frame on /tf with tf2_ros's QoS: camera and the seen wrist."""
     node = _publish_frames(TFSettings())
-    assert node.logger.warnings == []
     tf = node.publishers[publishers.TF_TOPIC]
-    assert tf.msg_type is fake_tf2_msgs and tf.qos.depth == 100
-    assert len(tf.sent) == 3
+    assert tf.msg_type is generated[0] and tf.qos.depth == 100
+    assert len(tf.sent) == 3 and publishers.TF_STATIC_TOPIC not in node.publishers
     assert [t.child_frame_id for t in tf.sent[-1].transforms] == [
         'head_camera_optical', 'operator/right_wrist']
     np.testing.assert_allclose(_vector(tf.sent[-1].transforms[0].transform.translation),
                                [1.0, 2.0, 3.0])
+    # Wrist-frame landmarks are stamped with the frame the TF gives.
+    landmarks = node.publishers['~/hands/right/wrist_frame_landmarks'].sent[-1]
+    assert landmarks.header.frame_id == 'operator/right_wrist'
 
 
-def test_tf_switches(fake_tf2_msgs: type) -> None:
-    """tf.camera false: wrists only; tf.enabled false: no /tf publisher and nothing said."""
+def test_a_fixed_camera_goes_once_to_tf_static(generated: tuple[type, type]) -> None:
+    """camera.motion static: world -> camera latched on /tf_static once; /tf has the wrists."""
+    node = _publish_frames(TFSettings(), static_camera=True)
+    static = node.publishers[publishers.TF_STATIC_TOPIC]
+    assert static.qos.durability == publishers.LATCHED_QOS.durability
+    (sent,) = static.sent
+    (camera,) = sent.transforms
+    assert (camera.header.frame_id, camera.child_frame_id) == ('world', 'head_camera_optical')
+    assert camera.header.stamp.sec == 1_767_225_600
+    assert [t.child_frame_id for t in node.publishers[publishers.TF_TOPIC].sent[-1].transforms
+            ] == ['operator/right_wrist']
+    no_camera = _publish_frames(TFSettings(camera=False), static_camera=True)
+    assert publishers.TF_STATIC_TOPIC not in no_camera.publishers
+
+
+def test_tf_switches(generated: tuple[type, type]) -> None:
+    """tf.camera false: wrists only; tf.enabled false: no /tf publisher."""
     wrists_only = _publish_frames(TFSettings(camera=False)).publishers[publishers.TF_TOPIC]
     assert [t.child_frame_id for t in wrists_only.sent[-1].transforms] == [
         'operator/right_wrist']
     off = _publish_frames(TFSettings(enabled=False))
-    assert publishers.TF_TOPIC not in off.publishers and off.logger.warnings == []
+    assert publishers.TF_TOPIC not in off.publishers
+
+
+def test_hands_is_one_hand_frame_per_image(generated: tuple[type, type]) -> None:
+    """~/hands: the camera pose and both detected hands, as the estimates bag writes them."""
+    serialization = pytest.importorskip('rclpy.serialization')
+    node = _publish_frames(TFSettings(enabled=False), count=1)
+    hands = node.publishers[publishers.HAND_FRAME_TOPIC]
+    assert hands.msg_type is generated[1]
+    msg = serialization.deserialize_message(hands.sent[0], generated[1])
+    assert msg.header.frame_id == 'world' and msg.header.stamp.nanosec == 123_456_789
+    np.testing.assert_allclose(_vector(msg.camera_pose.position), [1.0, 2.0, 3.0])
+    left, right = msg.hands
+    assert (left.side, left.has_world, right.side, right.has_world) == (LEFT, False, RIGHT, True)
+    assert right.confidence == pytest.approx(0.9)
+    np.testing.assert_allclose([_vector(p) for p in right.joints_world],
+                               PALM_JOINTS @ HAND_ROTATION.T + HAND_POSITION)
+    assert len(right.mano_world.hand_pose) == 45
+    node = _Node()
+    publishers.OutputPublishers(node, OutputSwitches(hand_frame=False), FRAMES,
+                                TFSettings(enabled=False))
+    assert publishers.HAND_FRAME_TOPIC not in node.publishers
 
 
 def test_the_path_reuses_the_messages_of_unchanged_poses() -> None:
     """A path message equals one built afresh; poses that did not change keep their messages."""
     msg_builders = pytest.importorskip('infinihand_ros.ros.msg_builders')
     node = _Node()
-    outputs = publishers.OutputPublishers(node, OutputSwitches(), FRAMES,
+    outputs = publishers.OutputPublishers(node, OutputSwitches(hand_frame=False), FRAMES,
                                           TFSettings(enabled=False))
     poses = [(stamp, PoseFields(np.array([stamp, 0.0, 0.0]), np.array([0.0, 0.0, 0.0, 1.0])))
              for stamp in (10, 20, 30)]

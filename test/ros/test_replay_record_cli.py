@@ -43,11 +43,13 @@ def test_replay_needs_a_bag_directory(capsys: pytest.CaptureFixture) -> None:
     assert 'not a directory' in capsys.readouterr().err
 
 
-def test_message_class_resolves_standard_types_only() -> None:
-    """Standard types import; our own (no Python package here) give None."""
+def test_message_class_resolves_importable_types_only() -> None:
+    """Standard and generated types import; a package that does not exist gives None."""
     assert replay_cli.message_class('sensor_msgs/msg/CompressedImage').__name__ == (
         'CompressedImage')
-    assert replay_cli.message_class('infinihand_msgs/msg/HandFrame') is None
+    assert replay_cli.message_class('no_such_msgs/msg/Thing') is None
+    pytest.importorskip('infinihand_msgs.msg', reason='infinihand_msgs is not built (make)')
+    assert replay_cli.message_class('infinihand_msgs/msg/HandFrame').__name__ == 'HandFrame'
 
 
 def test_record_arguments(tmp_path: Path, capsys: pytest.CaptureFixture) -> None:

@@ -160,6 +160,9 @@ class OutputSwitches:
                             'wrist_frame_landmarks}.')
     markers: bool = parameter(True, 'Publish ~/hands/markers.')
     camera_info: bool = parameter(True, 'Publish ~/camera_info (the intrinsics used).')
+    hand_frame: bool = parameter(True, 'Publish ~/hands (infinihand_msgs/HandFrame: the camera '
+                                 'pose and both hands of each image, as the estimates bag '
+                                 'holds them).')
     path_length: int = parameter(1000, 'Poses kept in ~/camera_path (oldest dropped first).', 1,
                                  1_000_000)
     path_period_s: float = parameter(1.0, 'Publish ~/camera_path and its marker once per this '
@@ -179,11 +182,11 @@ class TFSettings:
 
     enabled: bool = parameter(True, 'Broadcast /tf (tf2_msgs/TFMessage, stamped with the image): '
                               'world -> camera frame and world -> the wrist frame of each hand '
-                              'published; needs tf2_msgs (a ROS 2 install; said once at start-up '
-                              'when it is missing).')
-    camera: bool = parameter(True, 'Include world -> camera frame (the camera pose); false when '
-                             'another node gives the camera frame its parent (a URDF): a TF '
-                             'frame has one parent.')
+                              'published.')
+    camera: bool = parameter(True, 'Include world -> camera frame (the camera pose; with '
+                             'camera.motion static once on /tf_static); false when another '
+                             'node gives the camera frame its parent (a URDF): a TF frame has '
+                             'one parent.')
 
 
 @dataclass(frozen=True)

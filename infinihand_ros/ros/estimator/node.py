@@ -112,7 +112,8 @@ class EstimatorNode(Node):
         self._restart_after_ns = int(self.config.camera.restart_after_s * NS_PER_S)
         self._image_topics: dict[type, str] = {}  # message type -> resolved topic name
         self.outputs = OutputPublishers(self, self.config.outputs, self.config.frames,
-                                        self.config.tf)
+                                        self.config.tf,
+                                        static_camera=engine.static)
         self._diagnostics = self.create_publisher(DiagnosticArray, DIAGNOSTICS_TOPIC, 10)
         self._ba_node = (None if remote is None else BANodeClient(
             self, self.config.ba_node, self.config.frames.world_frame_id, remote))
@@ -331,7 +332,8 @@ class EstimatorNode(Node):
 
 DESCRIPTION: Final = (
     'The InfiniHand estimator: camera images in (image, image/compressed, camera_info),\n'
-    'camera pose and world-space hands out (~/camera_pose, ~/camera_path, ~/hands/...).\n\n'
+    'camera pose and world-space hands out (~/hands, ~/camera_pose, ~/camera_path,\n'
+    '~/hands/..., /tf).\n\n'
     'Hand source: mediapipe by default (MediaPipe Hands, trained on real photos, lifted to\n'
     'MANO), because this node runs on real camera images and the bundled InfiniHand weights\n'
     'have seen only synthetic images. -p hands.source:=infinihand runs the hand branch of\n'

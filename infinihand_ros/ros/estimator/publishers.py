@@ -7,11 +7,17 @@ pose gives it). Per hand, the fields are ``core.output_fields.HandOutput``; a ha
 seen (or whose wrist frame cannot be formed) gets empty landmark arrays and DELETE markers, and
 no wrist pose.
 
-``/tf`` (``tf.*``), as teleoperation bridges publish it (``tf2_ros.TransformBroadcaster``'s
-topic and QoS): one ``tf2_msgs/TFMessage`` per frame holding world -> camera frame (the camera
-pose, camera-to-world) and world -> wrist frame of each hand with a wrist pose. ``tf2_msgs``
-has no PyPI wheel: where it cannot be imported the node says so once at start-up and
-publishes everything else.
+``~/hands`` (``outputs.hand_frame``): one ``infinihand_msgs/HandFrame`` per image, both hands
+and the camera, made by ``bag.messages.frame_result_to_msg`` as the converter's estimates bag
+is, and published serialized (the bag typestore's definition is the generated type's).
+
+``/tf`` (``tf.*``), as ``tf2_ros.TransformBroadcaster`` publishes it (its topic and QoS): one
+``tf2_msgs/TFMessage`` per frame holding world -> camera frame (the camera pose,
+camera-to-world) and world -> wrist frame of each hand with a wrist pose. With a fixed camera
+(``camera.motion: static``) world -> camera never changes: it goes once to ``/tf_static``
+(latched, as ``tf2_ros.StaticTransformBroadcaster`` sends it) instead. ``make`` builds
+``tf2_msgs`` and ``infinihand_msgs`` where no ROS 2 install provides them; an output whose type
+cannot be imported stops the node at start-up with a ``ConfigError`` saying so.
 """
 
 import importlib
@@ -20,7 +26,11 @@ from typing import Any, Final
 from geometry_msgs.msg import PoseArray
 from geometry_msgs.msg import PoseStamped
 from geometry_msgs.msg import TransformStamped
+from infinihand_ros.bag.messages import frame_result_to_msg
+from infinihand_ros.bag.typestore import build_typestore
+from infinihand_ros.bag.typestore import HAND_FRAME_MSG
 from infinihand_ros.core.datatypes import FrameResult
+from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.output_fields import hand_output
@@ -52,15 +62,32 @@ LATCHED_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE,
 #: /tf as ``tf2_ros.TransformBroadcaster`` publishes it (its QoS: reliable, volatile, 100 deep).
 TF_TOPIC: Final = '/tf'
 TF_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
-TF_MODULE: Final = 'tf2_msgs.msg'
+#: /tf_static as ``tf2_ros.StaticTransformBroadcaster`` publishes it (reliable, latched).
+TF_STATIC_TOPIC: Final = '/tf_static'
+TF_STATIC_QOS = LATCHED_QOS
+TF_TYPE: Final = ('tf2_msgs.msg', 'TFMessage')
+HAND_FRAME_TOPIC: Final = '~/hands'
+HAND_FRAME_TYPE: Final = ('infinihand_msgs.msg', 'HandFrame')
 
 
-def tf_message_type() -> Any | None:
-    """Return the ``tf2_msgs/TFMessage`` class, or None where tf2_msgs cannot be imported."""
+def message_type(module_and_class: tuple[str, str], switch: str | None = None) -> Any:
+    """Return a generated message class.
+
+    Raises:
+        ConfigError: when its package cannot be imported, saying how to build it (and naming
+            the parameter ``switch`` that turns its output off).
+
+    """
+    module, name = module_and_class
     try:
-        return importlib.import_module(TF_MODULE).TFMessage
-    except ImportError:
-        return None
+        return getattr(importlib.import_module(module), name)
+    except ImportError as exc:
+        package = module.split('.')[0]
+        off = '' if switch is None else f', or set {switch}:=false'
+        raise ConfigError(
+            f'{package} cannot be imported ({exc}): build the interface packages with make (or '
+            f'colcon build --base-paths . $(scripts/interface_packages.sh)) and source '
+            f'scripts/env.sh{off}') from exc
 
 
 def frame_transforms(result: FrameResult, hands: dict[int, HandOutput | None],
@@ -96,15 +123,27 @@ class OutputPublishers:
     """Creates the node's output publishers and publishes frame outputs on them."""
 
     def __init__(self, node: Node, switches: OutputSwitches, frames: FrameIds,
-                 tf: TFSettings) -> None:
+                 tf: TFSettings, static_camera: bool = False) -> None:
         """Create the publishers the switches ask for (and the latched joint names).
 
-        With ``tf.enabled`` but no tf2_msgs, logs once that /tf is not broadcast and why.
+        Args:
+            node: the node that owns the publishers.
+            switches: which outputs to publish.
+            frames: the world and wrist frame ids.
+            tf: what to broadcast on /tf.
+            static_camera: the camera never moves (``camera.motion: static``): world ->
+                camera goes once to /tf_static instead of /tf with every frame.
+
+        Raises:
+            ConfigError: when ``~/hands`` or /tf is asked for and its message package cannot
+                be imported.
+
         """
         self.switches = switches
         self.frames = frames
         self.world = frames.world_frame_id
         self.tf = tf
+        self.static_camera = static_camera
         # The last path's pose messages by stamp, with the pose each was built from.
         self._path_poses: dict[int, tuple[PoseFields, PoseStamped]] = {}
         create = node.create_publisher
@@ -120,14 +159,15 @@ class OutputPublishers:
             for side, name in zip(SIDES, SIDE_NAMES)}
         self.joint_names = create(String, '~/hands/joint_names', LATCHED_QOS)
         self.joint_names.publish(msg_builders.joint_names_msg())
-        tf_message = tf_message_type() if tf.enabled else None
-        self._tf_message = tf_message
-        self.transforms = None if tf_message is None else create(tf_message, TF_TOPIC, TF_QOS)
-        if tf.enabled and tf_message is None:
-            node.get_logger().warning(
-                f'not broadcasting TF on {TF_TOPIC}: {TF_MODULE} cannot be imported (the PyPI '
-                'ROS 2 wheels have no tf2_msgs); run in a sourced ROS 2 Jazzy install (or '
-                'install ros-jazzy-tf2-msgs there), or set tf.enabled:=false')
+        self._typestore = build_typestore() if switches.hand_frame else None
+        self.hand_frame = (create(message_type(HAND_FRAME_TYPE, 'outputs.hand_frame'),
+                                  HAND_FRAME_TOPIC, OUTPUT_QOS) if switches.hand_frame else None)
+        self._tf_message = message_type(TF_TYPE, 'tf.enabled') if tf.enabled else None
+        self.transforms = (create(self._tf_message, TF_TOPIC, TF_QOS) if tf.enabled
+                           else None)
+        self.static_transforms = (create(self._tf_message, TF_STATIC_TOPIC, TF_STATIC_QOS)
+                                  if tf.enabled and tf.camera and static_camera else None)
+        self._static_camera_frame: str | None = None  # the camera frame sent on /tf_static
 
     def publish(self, result: FrameResult, camera_frame_id: str,
                 path: list[tuple[int, PoseFields]] | None) -> None:
@@ -160,11 +200,25 @@ class OutputPublishers:
             if path is not None:
                 specs.append(path_marker(np.array([pose.position for _, pose in path])))
             self.markers.publish(msg_builders.marker_array_msg(stamp, self.world, specs))
-        if self.transforms is not None:
-            transforms = frame_transforms(result, hands, self.frames,
-                                          camera_frame_id if self.tf.camera else None)
-            if transforms:
-                self.transforms.publish(self._tf_message(transforms=transforms))
+        if self.transforms is not None:  # first, so a consumer of ~/hands finds its wrist
+            self._publish_transforms(result, hands, camera_frame_id)
+        if self.hand_frame is not None:
+            self.hand_frame.publish(bytes(self._typestore.serialize_cdr(
+                frame_result_to_msg(self._typestore, result, self.world), HAND_FRAME_MSG)))
+
+    def _publish_transforms(self, result: FrameResult, hands: dict[int, HandOutput | None],
+                            camera_frame_id: str) -> None:
+        """Broadcast the frame's transforms; a fixed camera's once on /tf_static."""
+        moving_camera = camera_frame_id if self.tf.camera and not self.static_camera else None
+        transforms = frame_transforms(result, hands, self.frames, moving_camera)
+        if transforms:
+            self.transforms.publish(self._tf_message(transforms=transforms))
+        if self.static_transforms is not None and camera_frame_id != self._static_camera_frame:
+            static = frame_transforms(result, dict.fromkeys(SIDES), self.frames,
+                                      camera_frame_id)
+            if static:
+                self.static_transforms.publish(self._tf_message(transforms=static))
+            self._static_camera_frame = camera_frame_id
 
     def _path_msg(self, stamp: int, path: list[tuple[int, PoseFields]]) -> Path:
         """Return the path message, reusing the pose messages of poses that did not change."""
