@@ -1,10 +1,11 @@
-"""Real clips with an independent reference trajectory (``shared/data/real_ego``), and scores.
+"""Real clips with independent references (``shared/data/real_ego``), and scores against them.
 
-A clip folder holds ``frames/NNNNNN.jpg``, ``frames_meta.json`` (each file's time) and
+A clip folder holds ``frames/NNNNNN.jpg``, ``frames_meta.json`` (each file's time),
 ``sfm_poses.json``: a pycolmap SfM camera-to-world trajectory (OpenCV axes, arbitrary scale and
-gauge) with its lens (COLMAP pixel convention). No ground truth exists for real clips: scores
-compare with that reference after a Sim(3) alignment (ATE as a share of the reference's path) or
-need no alignment (relative rotations).
+gauge) with its lens (COLMAP pixel convention), and ``mediapipe.npz``: MediaPipe Hands alone on
+every frame. No ground truth exists for real clips: camera scores compare with the SfM
+trajectory after a Sim(3) alignment (ATE as a share of its path) or need no alignment (relative
+rotations); hand scores compare the hands written with MediaPipe's.
 """
 
 from collections.abc import Iterator
@@ -13,6 +14,7 @@ import json
 from pathlib import Path
 
 import cv2
+from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.geometry import invert_transform
@@ -113,3 +115,52 @@ def reference_scores(T_world_cam: np.ndarray, clip: ReferenceClip,
     return {'ate_pct': 100.0 * ate / clip.path_length,
             'rre_median_deg': float(np.median(step)), 'rre_mean_deg': float(np.mean(step)),
             'end_deg': float(rotation_angle_deg(end_pred[:3, :3], end_true[:3, :3]))}
+
+
+#: MediaPipe's unmirrored handedness labels as our sides (0 left, 1 right).
+MEDIAPIPE_SIDES = {'Left': 0, 'Right': 1}
+
+
+def mediapipe_hands(folder: str | Path) -> list[dict[int, np.ndarray]]:
+    """Return per frame MediaPipe alone's landmarks (21, 2) px by side, from ``mediapipe.npz``."""
+    data = np.load(Path(folder) / 'mediapipe.npz')
+    return [{MEDIAPIPE_SIDES[str(side)]: landmarks[k] for k, side in enumerate(sides[:count])}
+            for landmarks, sides, count in zip(data['landmarks_px'],
+                                               data['handedness_unmirrored'], data['num_hands'])]
+
+
+def hand_scores(results: list[FrameResult], reference: list[dict[int, np.ndarray]]
+                ) -> dict[str, float]:
+    """Score the hands of ``results`` (one per frame) against MediaPipe alone's.
+
+    Returns:
+        ``mediapipe_hands``: MediaPipe's hands; ``found_same_side`` / ``found_either_side``:
+        the share of them with a hand of ours on the same side / on any side;
+        ``not_in_mediapipe``: our hands on a side where MediaPipe has none;
+        ``reprojection_median`` / ``reprojection_p90``: over hands found on the same side, our
+        world joints projected through our camera pose and intrinsics, their median distance
+        to MediaPipe's landmarks over the larger side of MediaPipe's landmark box.
+
+    """
+    wanted = same = either = extra = 0
+    errors = []
+    for result, theirs in zip(results, reference, strict=True):
+        ours = {hand.side: hand for hand in result.hands}
+        wanted += len(theirs)
+        same += sum(side in ours for side in theirs)
+        either += min(len(ours), len(theirs))
+        extra += sum(side not in theirs for side in ours)
+        K = result.intrinsics.matrix()
+        T_cam_world = invert_transform(result.camera_pose.matrix())
+        for side, landmarks in theirs.items():
+            if side not in ours or ours[side].joints_world is None:
+                continue
+            camera = ours[side].joints_world @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]
+            projected = camera @ K.T
+            pixels = projected[:, :2] / projected[:, 2:3]
+            size = float(np.max(landmarks.max(axis=0) - landmarks.min(axis=0)))
+            errors.append(float(np.median(np.linalg.norm(pixels - landmarks, axis=1))) / size)
+    return {'mediapipe_hands': wanted, 'found_same_side': same / max(wanted, 1),
+            'found_either_side': either / max(wanted, 1), 'not_in_mediapipe': extra,
+            'reprojection_median': float(np.median(errors)) if errors else float('nan'),
+            'reprojection_p90': float(np.percentile(errors, 90)) if errors else float('nan')}

@@ -10,7 +10,9 @@ from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.run import engine_config_for
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.eval.reference_clip import hand_scores
 from infinihand_ros.eval.reference_clip import load_reference_clip
+from infinihand_ros.eval.reference_clip import mediapipe_hands
 from infinihand_ros.eval.reference_clip import reference_scores
 import numpy as np
 import pytest
@@ -50,9 +52,10 @@ def test_a_folder_without_a_reference_is_refused(tmp_path: Path) -> None:
 def test_the_converters_ba_beats_its_tracker_on_a_real_panning_clip() -> None:
     """ego4d_counter (a 38 deg pan through an uncalibrated lens with k1 = -0.16, per SfM).
 
-    With the converter's settings, the final trajectory (BA) against SfM: ATE at most 0.5x the
-    tracker's and the first-to-last rotation error at most a third of it; every BA call
-    passes its held-out check and finds barrel distortion (k1 < -0.1).
+    With the converter's settings, the final trajectory (BA) against SfM: ATE at most 3 % of the
+    path and 0.8x the tracker's, relative rotation error median at most 0.3 deg, and the
+    first-to-last rotation error at most a third of the tracker's; every BA call passes its
+    held-out check.
     """
     clip = _clip('ego4d_counter')
     with StreamingEngine(engine_config_for(load_convert_config())) as engine:
@@ -64,7 +67,34 @@ def test_the_converters_ba_beats_its_tracker_on_a_real_panning_clip() -> None:
         statistics = engine.statistics['ba']
     tracker = reference_scores(np.stack([r.raw_camera_pose.matrix() for r in final]), clip)
     refined = reference_scores(np.stack([r.camera_pose.matrix() for r in final]), clip)
-    assert statistics['done'] >= 2 and statistics['rejected'] == statistics['failed'] == 0
-    assert refined['ate_pct'] <= 0.5 * tracker['ate_pct']
+    assert statistics['done'] >= 1 and statistics['rejected'] == statistics['failed'] == 0
+    assert refined['ate_pct'] <= min(3.0, 0.8 * tracker['ate_pct'])
+    assert refined['rre_median_deg'] <= 0.3
     assert refined['end_deg'] <= tracker['end_deg'] / 3
     assert not any(result.ba_failed for result in final)
+
+
+@pytest.mark.slow
+def test_a_real_two_handed_clip_through_the_converters_settings() -> None:
+    """ego4d_stove (two hands stirring, a near-still head), no intrinsics given.
+
+    One lens for the clip within 10 % of SfM's; the final trajectory within 3 % of the path;
+    at least 60 % of MediaPipe alone's hands written on the same side, their world joints
+    projected through the written camera a median 0.1 of the hand box or less from
+    MediaPipe's landmarks (``benchmarks/real_ego.py`` prints all clips).
+    """
+    clip = _clip('ego4d_stove')
+    with StreamingEngine(engine_config_for(load_convert_config())) as engine:
+        live = []
+        for image, stamp in clip.frames():
+            live += engine.push(image, stamp, None)
+        final = engine.refined(live + engine.flush())
+    lenses = {result.intrinsics for result in final}
+    assert len(lenses) == 1
+    assert lenses.pop().fx == pytest.approx(clip.intrinsics.fx, rel=0.1)
+    assert reference_scores(np.stack([r.camera_pose.matrix() for r in final]),
+                            clip)['ate_pct'] <= 3.0
+    hands = hand_scores(final, mediapipe_hands(REAL_EGO / 'ego4d_stove'))
+    assert hands['mediapipe_hands'] == 98
+    assert hands['found_same_side'] >= 0.6
+    assert hands['reprojection_median'] <= 0.1
