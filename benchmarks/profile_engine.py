@@ -165,8 +165,9 @@ class _SilentPublisher:
     """A publisher that serialises every message as rclpy's would and sends nothing."""
 
     def publish(self, message: object) -> None:
-        """Serialise ``message``."""
-        serialize_message(message)
+        """Serialise ``message`` (``~/hands`` comes serialised already: it goes as it is)."""
+        if not isinstance(message, bytes):
+            serialize_message(message)
 
 
 class _SilentNode:

@@ -133,10 +133,12 @@ def _replay_recorded(tmp_path: Path, env: dict[str, str], bag: Path) -> Path:
             running('record', ['-o', str(out), HANDS, *STUB_OUTPUTS], env,
                     tmp_path / 'record_replayed.log') as recorder:
         assert wait_for_text(stub_log, STUB_READY, stub, 60.0), stub_log.read_text()
-        replay = start('replay', [str(bag), '--wait-for-subscribers', '20', '--delay', '2',
+        # The recorder's subscription alone can satisfy the wait on ~/hands: the delay gives
+        # the stub's time to match too (discovery on a loaded machine takes seconds).
+        replay = start('replay', [str(bag), '--wait-for-subscribers', '20', '--delay', '6',
                                   '--topics', HANDS, '/tf'], env, tmp_path / 'replay2.log')
         assert replay.wait(120) == 0, (tmp_path / 'replay2.log').read_text()
-        time.sleep(2.0)
+        time.sleep(4.0)  # the stub answers the last frames
         assert interrupt(stub) == 0, stub_log.read_text()
         assert interrupt(recorder) == 0, (tmp_path / 'record_replayed.log').read_text()
     return out
