@@ -657,6 +657,13 @@ class StreamingEngine:
             Intrinsics.from_matrix(median, width, height))
         return torch.as_tensor(median, dtype=used.dtype).expand_as(used[0])[None].clone()
 
+    def _calibrated(self, frame: PreparedFrame) -> bool:
+        """Return whether the frame's intrinsics were given (not the lens held from predictions).
+
+        BA refines a lens only where none was given.
+        """
+        return frame.intrinsics is not None and frame.intrinsics is not self._fixed_intrinsics
+
     def _fix_intrinsics(self, record: CameraSpaceFrame) -> None:
         """Collect a fixed camera's predicted intrinsics; hold their median once enough came."""
         wanted = self.config.lens_frames
@@ -781,7 +788,7 @@ class StreamingEngine:
                                               frame.source_image, depth,
                                               track.scaled(frame.index), record.intrinsics,
                                               record.hands, track.scale,
-                                              frame.intrinsics is not None))
+                                              self._calibrated(frame)))
         return self._output.apply(FrameResult(
             timestamp_ns=frame.timestamp_ns, frame_index=frame.index,
             intrinsics=record.intrinsics, is_keyframe=frame.keyframe, depth=depth,

@@ -259,6 +259,23 @@ def test_keyframes_reach_ba_no_closer_than_the_pools_interval(model, frames: lis
     assert [r.frame_index for r in results if r.depth is not None] == offered
 
 
+def test_one_lens_is_held_and_stays_free_for_ba(model, frames: list) -> None:
+    """Hands from outside the model, no intrinsics: the first block's lens holds for the stream.
+
+    BA still refines it (its keyframes are not calibrated); given intrinsics are.
+    """
+    config = replace(CONFIG, hands=replace(CONFIG.hands, source='mediapipe'))
+    for given in (False, True):
+        remote = RemoteBA()
+        with StreamingEngine(config, model, ba_backend=remote) as engine:
+            results = _run(engine, frames, with_intrinsics=given)
+            offered = remote.take_keyframes()
+        assert len({result.intrinsics for result in results}) == 1
+        assert offered and all(keyframe.calibrated == given for keyframe in offered)
+    with StreamingEngine(replace(config, lens_frames=0), model) as engine:
+        assert len({result.intrinsics for result in _run(engine, frames, False)}) > 1
+
+
 def test_engine_results_equal_a_direct_model_call(model, frames: list) -> None:
     """The engine's camera-space hands and raw poses are the shared forward's, frame by frame.
 
