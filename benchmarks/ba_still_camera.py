@@ -23,6 +23,7 @@ from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.photo_streams import as_webcam
 from infinihand_ros.synth.photo_streams import hand_and_arm_patch
 from infinihand_ros.synth.photo_streams import pasted_stream
+from infinihand_ros.synth.photo_streams import wandering_corners
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -35,11 +36,7 @@ def still_webcam(stills: list, frames: int) -> list:
     if patch is None:
         raise SystemExit('MediaPipe found no hand in the stills')
     background = stills[0]
-    height, width = background.rgb.shape[:2]
-    steps = np.linspace(0.0, 1.0, frames)
-    corners = np.stack([(width - patch.shape[1] - 1) * (0.5 + 0.5 * np.sin(4 * np.pi * steps)),
-                        (height - patch.shape[0] - 1) * (0.5 + 0.5 * np.sin(6 * np.pi * steps))],
-                       axis=1)
+    corners = wandering_corners(background.rgb.shape[:2], patch.shape[:2], frames)
     return as_webcam(pasted_stream(background.rgb, patch, corners, background.intrinsics))
 
 

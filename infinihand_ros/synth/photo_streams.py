@@ -5,7 +5,7 @@
   frame's exact intrinsics are known and a hand's camera-frame position is the same in each.
 - ``rotation_stream``: views from cameras turned about the photo's centre (exact pure rotation).
 - ``pasted_stream``: a still camera with a patch (a hand and arm, ``hand_and_arm_patch``) moving
-  across the photo.
+  across the photo (``wandering_corners``).
 - ``as_webcam``: any of these with a webcam's sensor noise and JPEG compression, new every frame.
 """
 
@@ -106,6 +106,19 @@ def as_webcam(frames: Sequence[CropFrame], noise_sigma: float = 2.0, jpeg_qualit
         rgb = cv2.imdecode(encoded, cv2.IMREAD_COLOR)[..., ::-1].copy()
         out.append(CropFrame(rgb, frame.timestamp_ns, frame.intrinsics))
     return out
+
+
+def wandering_corners(image_hw: tuple[int, int], patch_hw: tuple[int, int], frames: int,
+                      cycles: tuple[float, float] = (2.0, 3.0)) -> np.ndarray:
+    """Return (frames, 2) top-left pixels (x, y) of a patch wandering over a whole image.
+
+    x and y follow sines of ``cycles`` periods over the stream, spanning every position where
+    the patch lies inside the image (``pasted_stream``'s corners).
+    """
+    steps = np.linspace(0.0, 1.0, frames)
+    span_y, span_x = (image - patch - 1 for image, patch in zip(image_hw, patch_hw))
+    return np.stack([span_x * (0.5 + 0.5 * np.sin(2 * np.pi * cycles[0] * steps)),
+                     span_y * (0.5 + 0.5 * np.sin(2 * np.pi * cycles[1] * steps))], axis=1)
 
 
 def hand_and_arm_patch(photos: Sequence[np.ndarray], margin_px: int = 20) -> np.ndarray | None:

@@ -24,6 +24,7 @@ from infinihand_ros.synth.photo_streams import as_webcam
 from infinihand_ros.synth.photo_streams import hand_and_arm_patch
 from infinihand_ros.synth.photo_streams import pasted_stream
 from infinihand_ros.synth.photo_streams import rotation_stream
+from infinihand_ros.synth.photo_streams import wandering_corners
 import numpy as np
 import pytest
 from real_stills import require_stills
@@ -59,11 +60,7 @@ def test_still_camera_stays_put_while_a_real_hand_and_arm_move(stills: list,
     patch = hand_and_arm_patch([still.rgb for still in stills])
     assert patch is not None, 'MediaPipe found no hand in any still'
     background = stills[0]
-    height, width = background.rgb.shape[:2]
-    steps = np.linspace(0.0, 1.0, 120)
-    span_x, span_y = width - patch.shape[1] - 1, height - patch.shape[0] - 1
-    corners = np.stack([span_x * (0.5 + 0.5 * np.sin(2 * np.pi * 2 * steps)),
-                        span_y * (0.5 + 0.5 * np.sin(2 * np.pi * 3 * steps))], axis=1)
+    corners = wandering_corners(background.rgb.shape[:2], patch.shape[:2], 120)
     frames = pasted_stream(background.rgb, patch, corners, background.intrinsics)
     with _engine(geometry_interval=geometry_interval, geometry_lag=geometry_lag) as engine:
         results = _run(engine, frames)
@@ -88,11 +85,7 @@ def test_a_still_webcam_converted_with_ba_stays_put(stills: list) -> None:
     """
     patch = hand_and_arm_patch([still.rgb for still in stills])
     background = stills[0]
-    height, width = background.rgb.shape[:2]
-    steps = np.linspace(0.0, 1.0, 60)
-    corners = np.stack([(width - patch.shape[1] - 1) * (0.5 + 0.5 * np.sin(2 * np.pi * steps)),
-                        (height - patch.shape[0] - 1) * (0.5 + 0.5 * np.sin(3 * np.pi * steps))],
-                       axis=1)
+    corners = wandering_corners(background.rgb.shape[:2], patch.shape[:2], 60, (1.0, 1.5))
     frames = as_webcam(pasted_stream(background.rgb, patch, corners, background.intrinsics))
     with StreamingEngine(engine_config_for(load_convert_config())) as engine:
         live = []

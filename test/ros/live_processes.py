@@ -12,6 +12,17 @@ LIB = ROOT / 'install' / 'infinihand_ros' / 'lib' / 'infinihand_ros'
 SHARE = ROOT / 'install' / 'infinihand_ros' / 'share' / 'infinihand_ros'
 SAMPLE_BAG = ROOT / 'data' / 'sample_bag'
 NODE = '/infinihand_estimator'
+#: The node's standard QoS-override parameters: a reliable, deep image subscription, so that
+#: every replayed frame reaches the node even on a loaded machine (sensor-data QoS may lose some).
+LOSSLESS_INPUT = """/infinihand_estimator:
+  ros__parameters:
+    qos_overrides:
+      /camera/image_raw/compressed:
+        subscription:
+          reliability: reliable
+          history: keep_last
+          depth: 200
+"""
 #: The sample bag's camera topics, remapped onto the node's relative inputs.
 REMAPS = ('-r', 'image/compressed:=/camera/image_raw/compressed',
           '-r', 'camera_info:=/camera/camera_info')

@@ -28,6 +28,7 @@ from infinihand_ros.tools.node_processes import interrupt
 from infinihand_ros.tools.node_processes import ros_env
 from infinihand_ros.tools.node_processes import wait_for_text
 from live_processes import LIB
+from live_processes import LOSSLESS_INPUT
 from live_processes import NODE
 from live_processes import REMAPS
 from live_processes import running
@@ -50,17 +51,6 @@ READY = 'ready: engine'
 NO_BA = 'none'
 #: Live and offline runs do the same float math on the same frames; allow for thread order.
 OFFLINE_TOLERANCE = 1e-5
-#: The node's standard QoS-override parameters: a reliable, deep image subscription, so that
-#: every replayed frame reaches the node even on a loaded machine (sensor-data QoS may lose some).
-LOSSLESS_INPUT = """/infinihand_estimator:
-  ros__parameters:
-    qos_overrides:
-      /camera/image_raw/compressed:
-        subscription:
-          reliability: reliable
-          history: keep_last
-          depth: 200
-"""
 #: Run in another process: the reliability of every subscription of each topic in argv.
 PROBE = """
 import json, sys, time

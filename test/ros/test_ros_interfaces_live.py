@@ -23,6 +23,7 @@ from infinihand_ros.tools.node_processes import interrupt
 from infinihand_ros.tools.node_processes import ros_env
 from infinihand_ros.tools.node_processes import wait_for_text
 from live_processes import LIB
+from live_processes import LOSSLESS_INPUT
 from live_processes import NODE
 from live_processes import REMAPS
 from live_processes import running
@@ -46,16 +47,6 @@ OUTPUTS = [HANDS, '/tf', '/tf_static', f'{NODE}/camera_pose', f'{NODE}/camera_in
            f'{NODE}/hands/right/landmarks', f'{NODE}/hands/right/wrist_frame_landmarks',
            *STUB_OUTPUTS]
 STUB_ARGS = ['--ros-args', '-r', f'hands:={HANDS}']
-#: Every image reaches the node (as in test_estimator_live.py).
-LOSSLESS_INPUT = """/infinihand_estimator:
-  ros__parameters:
-    qos_overrides:
-      /camera/image_raw/compressed:
-        subscription:
-          reliability: reliable
-          history: keep_last
-          depth: 200
-"""
 PLAYBACK_S = '5'
 EXACT = 1e-12
 
