@@ -37,7 +37,7 @@ setup(
             f'record = {PACKAGE_NAME}.tools.record:main',
             f'bundle_adjustment = {PACKAGE_NAME}.ros.bundle_adjustment.node:main',
             f'bag_to_dataset = {PACKAGE_NAME}.convert.cli:console_main',
-            f'build_corpus = {PACKAGE_NAME}.data.corpus_cli:main',
+            f'build_corpus = {PACKAGE_NAME}.corpus.cli:main',
             f'live_demo = {PACKAGE_NAME}.tools.live_demo:main',
             f'retargeting_stub = {PACKAGE_NAME}.ros.retargeting_stub:main',
         ],

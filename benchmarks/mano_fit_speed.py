@@ -14,9 +14,9 @@ import os
 from pathlib import Path
 
 from infinihand_ros.core.config import load_config
-from infinihand_ros.data.mano_fit import fit_mano
-from infinihand_ros.data.mano_fit import ManoFitConfig
 from infinihand_ros.mano.builtin import BuiltinHandModel
+from infinihand_ros.mano.fit import fit_mano
+from infinihand_ros.mano.fit import ManoFitConfig
 from infinihand_ros.synth.known_tracks import known_track
 import numpy as np
 import torch

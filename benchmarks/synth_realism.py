@@ -44,13 +44,13 @@ import cv2
 from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
-from infinihand_ros.data.keypoint_source import Detection2D
-from infinihand_ros.data.mediapipe_source import MediaPipeConfig
-from infinihand_ros.data.mediapipe_source import MediaPipeKeypointSource
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
+from infinihand_ros.engine.hands.keypoints import Detection2D
 from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
+from infinihand_ros.engine.hands.mediapipe_keypoints import MediaPipeConfig
+from infinihand_ros.engine.hands.mediapipe_keypoints import MediaPipeKeypointSource
 from infinihand_ros.mano.capsules import palm_axes
 from infinihand_ros.mano.capsules import PALM_JOINTS
 from infinihand_ros.synth.photo_streams import crop_stream

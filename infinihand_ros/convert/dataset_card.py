@@ -12,8 +12,8 @@ import json
 from pathlib import Path
 from typing import Any, Final
 
+from infinihand_ros.convert import lerobot_features as feat
 from infinihand_ros.core.errors import InfiniHandError
-from infinihand_ros.data import lerobot_features as feat
 from infinihand_ros.engine.hands.config import MEDIAPIPE
 from infinihand_ros.model.io.bundled import resolve_checkpoint
 

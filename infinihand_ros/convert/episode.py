@@ -21,6 +21,16 @@ from typing import Any
 
 from infinihand_ros.convert.config import ConvertConfig
 from infinihand_ros.convert.estimates_bag import EstimatesBagWriter
+from infinihand_ros.convert.lerobot_features import ACTION
+from infinihand_ros.convert.lerobot_features import CAMERA_FLAG_NAMES
+from infinihand_ros.convert.lerobot_features import CAMERA_FLAGS
+from infinihand_ros.convert.lerobot_features import FRAME_INDEX
+from infinihand_ros.convert.lerobot_features import frame_values
+from infinihand_ros.convert.lerobot_features import HAND_VALID
+from infinihand_ros.convert.lerobot_features import RESULT_FEATURES
+from infinihand_ros.convert.lerobot_features import SOURCE_STAMP
+from infinihand_ros.convert.lerobot_features import STATE
+from infinihand_ros.convert.lerobot_features import TIMESTAMP
 from infinihand_ros.convert.report import EpisodeReport
 from infinihand_ros.convert.resample import output_time_ns
 from infinihand_ros.convert.resample import resample
@@ -33,16 +43,6 @@ from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.core.hand_conventions import SIDE_NAMES
 from infinihand_ros.core.units import NS_PER_S
-from infinihand_ros.data.lerobot_features import ACTION
-from infinihand_ros.data.lerobot_features import CAMERA_FLAG_NAMES
-from infinihand_ros.data.lerobot_features import CAMERA_FLAGS
-from infinihand_ros.data.lerobot_features import FRAME_INDEX
-from infinihand_ros.data.lerobot_features import frame_values
-from infinihand_ros.data.lerobot_features import HAND_VALID
-from infinihand_ros.data.lerobot_features import RESULT_FEATURES
-from infinihand_ros.data.lerobot_features import SOURCE_STAMP
-from infinihand_ros.data.lerobot_features import STATE
-from infinihand_ros.data.lerobot_features import TIMESTAMP
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 import numpy as np
 from rosbags.typesys.store import Typestore

@@ -11,11 +11,11 @@ layout allows, so each episode is added without rewriting any earlier file.
 import json
 from typing import Any, Final
 
+from infinihand_ros.convert.lerobot_features import DEFAULT_FEATURES
+from infinihand_ros.convert.lerobot_features import FeatureSpec
+from infinihand_ros.convert.lerobot_features import FRAME_FEATURES
 from infinihand_ros.convert.stats import Stats
 from infinihand_ros.convert.video_writer import VideoInfo
-from infinihand_ros.data.lerobot_features import DEFAULT_FEATURES
-from infinihand_ros.data.lerobot_features import FeatureSpec
-from infinihand_ros.data.lerobot_features import FRAME_FEATURES
 import numpy as np
 import pyarrow as pa
 

@@ -23,7 +23,7 @@ import sys
 
 from infinihand_ros.core.atomic_io import atomic_write_bytes
 from infinihand_ros.core.errors import InfiniHandError
-from infinihand_ros.data.sample_dataset import SampleDataset
+from infinihand_ros.corpus.sample_dataset import SampleDataset
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.metric_scale import hand_depth_ratios
 from infinihand_ros.engine.streaming_engine import StreamingEngine

@@ -21,7 +21,7 @@ from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.geometry import axis_angle_to_matrix
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
-from infinihand_ros.data import sample_format as fmt
+from infinihand_ros.corpus import sample_format as fmt
 from infinihand_ros.train.sequence_reader import open_sequence
 import numpy as np
 

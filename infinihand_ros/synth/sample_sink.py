@@ -10,7 +10,7 @@ from infinihand_ros.core.atomic_io import atomic_directory
 from infinihand_ros.core.atomic_io import honour_umask
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import SIDES
-from infinihand_ros.data import sample_format as fmt
+from infinihand_ros.corpus import sample_format as fmt
 from infinihand_ros.synth.sequence import SynthFrame
 import numpy as np
 from safetensors.numpy import save_file

@@ -23,7 +23,7 @@ from typing import Final, Protocol
 import cv2
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
-from infinihand_ros.data import sample_format as fmt
+from infinihand_ros.corpus import sample_format as fmt
 from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.frame_input import FrameMapping
 from infinihand_ros.model.config import GeometryConfig

@@ -27,12 +27,12 @@ from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.config import VideoSettings
 from infinihand_ros.convert.estimates_bag import HAND_FRAME_TOPIC
 from infinihand_ros.convert.estimates_bag import MARKERS_TOPIC
+from infinihand_ros.convert.lerobot_features import CAMERA_FLAG_NAMES
+from infinihand_ros.convert.lerobot_features import CAMERA_FLAGS
+from infinihand_ros.convert.lerobot_features import CAMERA_POSE
+from infinihand_ros.convert.lerobot_features import FRAME_FEATURES
 from infinihand_ros.convert.video_writer import EpisodeVideoWriter
 from infinihand_ros.core.datatypes import CameraPose
-from infinihand_ros.data.lerobot_features import CAMERA_FLAG_NAMES
-from infinihand_ros.data.lerobot_features import CAMERA_FLAGS
-from infinihand_ros.data.lerobot_features import CAMERA_POSE
-from infinihand_ros.data.lerobot_features import FRAME_FEATURES
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 import numpy as np
 import pyarrow.parquet as pq

@@ -14,7 +14,7 @@ from infinihand_ros.convert.cli import EXIT_USAGE
 from infinihand_ros.convert.cli import main
 from infinihand_ros.convert.cli import REPORT_FILE
 from infinihand_ros.convert.image_frames import UNREADABLE
-from infinihand_ros.data.lerobot_features import INTRINSICS
+from infinihand_ros.convert.lerobot_features import INTRINSICS
 from PIL import Image
 import pyarrow.parquet as pq
 import pytest

@@ -13,10 +13,10 @@ from infinihand_ros.convert.cli import EXIT_OK
 from infinihand_ros.convert.cli import EXIT_USAGE
 from infinihand_ros.convert.cli import main
 from infinihand_ros.convert.dataset_card import CARD_FILE
+from infinihand_ros.convert.lerobot_features import HAND_CONFIDENCE
+from infinihand_ros.convert.lerobot_features import INTRINSICS
 from infinihand_ros.convert.lerobot_layout import CONVERSION_PATH
 from infinihand_ros.convert.provenance import files_sha256
-from infinihand_ros.data.lerobot_features import HAND_CONFIDENCE
-from infinihand_ros.data.lerobot_features import INTRINSICS
 from infinihand_ros.model.io.bundled import resolve_checkpoint
 import numpy as np
 import pyarrow.parquet as pq

@@ -7,18 +7,18 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.data.keypoint_source import Detection2D
-from infinihand_ros.data.mano_fit import inverse_kinematics
 from infinihand_ros.engine.hands import lift
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.detections import FrameDetections
+from infinihand_ros.engine.hands.keypoints import Detection2D
 from infinihand_ros.engine.hands.lift import lift_hand
 from infinihand_ros.engine.hands.lift import place_by_projection
 from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
 from infinihand_ros.engine.hands.mediapipe_source import one_per_side
 from infinihand_ros.engine.hands.source import InfiniHandSource
 from infinihand_ros.mano.builtin import BuiltinHandModel
+from infinihand_ros.mano.fit import inverse_kinematics
 from infinihand_ros.model.hand.lsp import solve_lateral_translation
 import numpy as np
 import pytest

@@ -4,7 +4,7 @@ import json
 from pathlib import Path
 
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.data import sample_format as fmt
+from infinihand_ros.corpus import sample_format as fmt
 from infinihand_ros.train import sequence_reader as keys
 from infinihand_ros.train.clip_data import ClipDataset
 from infinihand_ros.train.clip_data import ClipLoader

@@ -2,7 +2,7 @@
 
 from dataclasses import dataclass
 
-from infinihand_ros.data.keypoint_source import Detection2D
+from infinihand_ros.engine.hands.keypoints import Detection2D
 
 
 @dataclass(frozen=True)

@@ -4,7 +4,7 @@ The real-image hand source (``mediapipe_source.py``) gives, per hand, 21 pixel l
 21 metric joints relative to the hand (axes along the camera's). ``lift_hand`` turns them into
 the hand the paper's branch produces, in three steps:
 
-1. MANO pose and orientation by the project's fitting (``data/mano_fit.py``): the closed-form
+1. MANO pose and orientation by the project's fitting (``mano/fit.py``): the closed-form
    ``inverse_kinematics`` (bone directions; bone lengths are the hand model's for the hand's
    betas, so one person keeps one shape), optionally refined by ``fit_mano`` warm-started
    there;
@@ -26,12 +26,12 @@ from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.geometry import MIN_PROJECTION_DEPTH_M
-from infinihand_ros.data.mano_fit import fit_mano
-from infinihand_ros.data.mano_fit import inverse_kinematics
-from infinihand_ros.data.mano_fit import ManoFitConfig
-from infinihand_ros.data.mano_fit import model_joints
-from infinihand_ros.data.mano_fit import rest_joints
 from infinihand_ros.mano.base import HandModel
+from infinihand_ros.mano.fit import fit_mano
+from infinihand_ros.mano.fit import inverse_kinematics
+from infinihand_ros.mano.fit import ManoFitConfig
+from infinihand_ros.mano.fit import model_joints
+from infinihand_ros.mano.fit import rest_joints
 import numpy as np
 
 #: Root depths searched, metres (hands from touching the lens to across a room).

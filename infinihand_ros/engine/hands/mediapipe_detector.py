@@ -29,12 +29,12 @@ from typing import Final
 import cv2
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.data.keypoint_source import Detection2D
-from infinihand_ros.data.mediapipe_source import MediaPipeConfig
-from infinihand_ros.data.mediapipe_source import MediaPipeKeypointSource
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
+from infinihand_ros.engine.hands.keypoints import Detection2D
+from infinihand_ros.engine.hands.mediapipe_keypoints import MediaPipeConfig
+from infinihand_ros.engine.hands.mediapipe_keypoints import MediaPipeKeypointSource
 import numpy as np
 
 #: Longest image side handed to MediaPipe, pixels (larger images are downscaled first).

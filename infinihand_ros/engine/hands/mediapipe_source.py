@@ -20,16 +20,16 @@ from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.hand_conventions import WRIST
-from infinihand_ros.data.keypoint_source import Detection2D
-from infinihand_ros.data.mano_fit import float64_copies
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.config import MEDIAPIPE
 from infinihand_ros.engine.hands.detections import FrameDetections
+from infinihand_ros.engine.hands.keypoints import Detection2D
 from infinihand_ros.engine.hands.lift import lift_hand
 from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.mano.base import HandModel
+from infinihand_ros.mano.fit import float64_copies
 import numpy as np
 
 #: Two same-labelled hands overlapping more than this (IoU), or with wrists closer than

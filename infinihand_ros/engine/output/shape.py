@@ -7,7 +7,7 @@ that side this shape. The reshaping changes only the shape part of the joints: t
 joints of the hand model with the shared betas replace those with the frame's betas, with the
 wrist, pose and orientation kept, in both the camera and the world frame (the same change,
 turned by the rotation between the two frames' orientations). The float64 built-in skeleton is
-posed in numpy (``data/mano_fit.model_joints``), so this costs little per hand.
+posed in numpy (``mano/fit.model_joints``), so this costs little per hand.
 """
 
 from dataclasses import replace
@@ -17,9 +17,9 @@ from infinihand_ros.core.datatypes import ManoParams
 from infinihand_ros.core.hand_conventions import NUM_BETAS
 from infinihand_ros.core.hand_conventions import SIDES
 from infinihand_ros.core.hand_conventions import WRIST
-from infinihand_ros.data.mano_fit import model_joints
 from infinihand_ros.engine.output.config import ShapeConfig
 from infinihand_ros.mano.base import HandModel
+from infinihand_ros.mano.fit import model_joints
 import numpy as np
 from scipy.spatial.transform import Rotation
 

@@ -13,13 +13,13 @@ from dataclasses import replace
 
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.core.datatypes import HandState
-from infinihand_ros.data.mano_fit import float64_copies
 from infinihand_ros.engine.output.config import OutputConfig
 from infinihand_ros.engine.output.identity import HandIdentityTracker
 from infinihand_ros.engine.output.shape import reshape_hand
 from infinihand_ros.engine.output.shape import ShapeConsensus
 from infinihand_ros.engine.output.smoothing import HandSmoother
 from infinihand_ros.mano.base import HandModel
+from infinihand_ros.mano.fit import float64_copies
 
 
 class OutputStage:
