@@ -27,8 +27,6 @@ import sys
 import time
 
 from infinihand_ros.ba import costs
-from infinihand_ros.ba.config import for_offline_runs
-from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.ba.correspondences import build_problem
 from infinihand_ros.ba.keyframe import KeyframeInput
 from infinihand_ros.ba.lie import inverse
@@ -40,7 +38,8 @@ from infinihand_ros.core.geometry import rotation_angle_deg
 from infinihand_ros.engine.ba_backend import box_mask
 from infinihand_ros.engine.ba_backend import moving_mask
 from infinihand_ros.engine.ba_in_process import InProcessBA
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import build_engine_config
+from infinihand_ros.engine.settings import OFFLINE_BA
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.eval.reference_clip import load_reference_clip
 from infinihand_ros.eval.reference_clip import reference_scores
@@ -101,9 +100,7 @@ def _source(args: argparse.Namespace) -> tuple[str, ReferenceClip, list, object,
         reference = ReferenceClip(
             sequence.name, (), truth.timestamp_ns, truth.T_world_cam, None, 0.0,
             float(np.linalg.norm(np.diff(centres, axis=0), axis=-1).sum()))
-        config = load_engine_config()
-        config = replace(config, bundle_adjustment=for_offline_runs(
-            config.bundle_adjustment or load_ba_config()))
+        config = build_engine_config('synthetic', OFFLINE_BA)
         return sequence.name, reference, list(sequence.frames()), config, truth
     clip = load_reference_clip(args.clip)
     frames = [(image, stamp, None) for image, stamp in clip.frames()]

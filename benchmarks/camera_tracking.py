@@ -24,7 +24,7 @@ from pathlib import Path
 
 from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.core.datatypes import Intrinsics
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.photo_streams import hand_and_arm_patch
 from infinihand_ros.synth.photo_streams import pasted_stream

@@ -27,9 +27,9 @@ import time
 from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.core.datatypes import FrameResult
 from infinihand_ros.engine.config import CPU_PRECISIONS
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.config import MODES
 from infinihand_ros.engine.model_builder import build_model
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 import numpy as np
 import torch

@@ -31,8 +31,8 @@ import resource
 import tempfile
 import time
 
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.model_builder import build_model
+from infinihand_ros.engine.settings import build_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.model.config import named_config_path
 from infinihand_ros.model.io.convert_lingbot_map import convert_checkpoint
@@ -124,7 +124,7 @@ def _train_step(size: str, device: str, folder: Path) -> dict:
 def run_check(size: str, device: str, frames: int, folder: Path) -> dict:
     """Run the three checks; return the figures (see the module docstring)."""
     torch_device = torch.device(device)
-    base = load_engine_config()
+    base = build_engine_config('synthetic')
     model_selection = replace(base.model, geometry=size, hand_branch=size, checkpoint=None)
     config = replace(base, device=device, model=model_selection, cpu_precision='auto')
     rendered = list(SyntheticSequence(SynthConfig(), seed=1, num_frames=DISTINCT_FRAMES))

@@ -10,10 +10,10 @@ Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
 ``bundle_adjustment`` node) on a private DDS domain, replays the frames (10 FPS; ``replay
 --rate r/10``) and listens in this process to the replayed images and to ``~/camera_pose``.
 Profiles: ``default`` (the node's defaults), ``lag0`` (the defaults with the geometry branch's
-outputs taken in before the next frame, ``engine.geometry_lag: 0``, so that it runs in the
+outputs taken in before the next frame, ``engine.set: geometry_lag=0``, so that it runs in the
 inference thread), ``lag1`` (taken in a frame late, before the second frame after it, instead of
-the node's two frames late: ``engine.geometry_lag: 1``), ``every_frame`` (the defaults with the
-geometry branch on every frame, ``engine.geometry_interval: 1``), ``teleop`` (``camera.motion:
+the node's two frames late: ``engine.set: geometry_lag=1``), ``every_frame`` (the defaults with the
+geometry branch on every frame, ``engine.set: geometry_interval=1``), ``teleop`` (``engine.profile:
 static``, a fixed camera, with the default MediaPipe hands: the teleoperation case; BA does not
 apply) and ``teleop_pair`` (the same with ``hands.search_interval: 1``: MediaPipe as it is, one
 graph following both hands, instead of one graph per hand side by side). Frames: ``sample``, the
@@ -89,11 +89,11 @@ INFO_TOPIC = '/camera/camera_info'
 POSE_TOPIC = '/infinihand_estimator/camera_pose'
 REMAPS = ['-r', f'image/compressed:={IMAGE_TOPIC}', '-r', f'camera_info:={INFO_TOPIC}']
 #: Node parameters of each profile.
-PROFILES = {'default': [], 'lag0': ['-p', 'engine.geometry_lag:=0'],
-            'lag1': ['-p', 'engine.geometry_lag:=1'],
-            'every_frame': ['-p', 'engine.geometry_interval:=1'],
-            'teleop': ['-p', 'camera.motion:=static'],
-            'teleop_pair': ['-p', 'camera.motion:=static', '-p', 'hands.search_interval:=1']}
+PROFILES = {'default': [], 'lag0': ['-p', "engine.set:='geometry_lag=0'"],
+            'lag1': ['-p', "engine.set:='geometry_lag=1'"],
+            'every_frame': ['-p', "engine.set:='geometry_interval=1 geometry_lag=0'"],
+            'teleop': ['-p', 'engine.profile:=teleop'],
+            'teleop_pair': ['-p', 'engine.profile:=teleop', '-p', 'hands.search_interval:=1']}
 STILLS = ROOT.parent / 'shared' / 'data' / 'real_hands_stills'
 REAL_SECONDS = 15.0
 JPEG_QUALITY = 90
@@ -140,10 +140,10 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument('--profiles', nargs='+', default=list(PROFILES), choices=list(PROFILES),
                         help='default: the node as shipped; lag0, lag1: the geometry branch '
                         'taken in before the next frame, or the one after it '
-                        '(engine.geometry_lag 0, 1; the node takes it in two frames late); '
+                        '(engine.set geometry_lag=0, 1; the node takes it in two frames late); '
                         'every_frame: the '
-                        'geometry branch on every frame (engine.geometry_interval 1); teleop: '
-                        'a fixed camera (camera.motion static) with MediaPipe hands; '
+                        'geometry branch on every frame (engine.set geometry_interval=1); teleop: '
+                        'a fixed camera (engine.profile teleop) with MediaPipe hands; '
                         'teleop_pair: the same with MediaPipe as it is, one graph for both '
                         'hands (hands.search_interval 1)')
     parser.add_argument('--frames', choices=('sample', 'real', 'real2'), default='sample',

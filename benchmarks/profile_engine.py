@@ -46,10 +46,10 @@ from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine import streaming_engine
 from infinihand_ros.engine.config import CAMERA_MOTIONS
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.hands.config import HAND_SOURCES
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.output.camera_path import CameraPath
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.model import infinihand_model
 from infinihand_ros.ros.estimator.config import FrameIds

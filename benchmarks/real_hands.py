@@ -26,7 +26,6 @@ import time
 
 from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.core.datatypes import Intrinsics
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
@@ -34,6 +33,7 @@ from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.engine.hands.mediapipe_keypoints import MediaPipeConfig
 from infinihand_ros.engine.hands.mediapipe_keypoints import MediaPipeKeypointSource
 from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.mano.builtin import BuiltinHandModel
 import numpy as np

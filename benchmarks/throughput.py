@@ -27,8 +27,8 @@ import time
 
 from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.engine.config import CPU_PRECISIONS
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.model_builder import build_model
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence

@@ -13,13 +13,11 @@ the plots into ``--out``/eval. Then the live path (``tools/live_demo.py``): the 
 """
 
 import argparse
-from dataclasses import replace
+from collections.abc import Sequence
 from pathlib import Path
 import sys
 from typing import Final
 
-from infinihand_ros.ba.config import for_offline_runs
-from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.bag.messages import msg_to_frame_result
 from infinihand_ros.bag.messages import msg_to_pose
 from infinihand_ros.bag.reader import BagReader
@@ -27,11 +25,13 @@ from infinihand_ros.core import geometry
 from infinihand_ros.core import topics
 from infinihand_ros.core.atomic_io import atomic_directory
 from infinihand_ros.core.atomic_io import check_writable_location
-from infinihand_ros.core.config import dump_config
 from infinihand_ros.core.errors import InfiniHandError
-from infinihand_ros.engine.config import ENGINE_SECTION
 from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import build_engine_config
+from infinihand_ros.engine.settings import OFFLINE_BA
+from infinihand_ros.engine.settings import parse_overrides
+from infinihand_ros.engine.settings import save_engine_settings
+from infinihand_ros.engine.settings import SETTINGS_FILE
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.eval.cli import mean_pose_joints
 from infinihand_ros.eval.cli import save_outputs
@@ -56,7 +56,8 @@ SAME_SEQUENCE_TOLERANCE_M: Final = 1e-9
 #: missing one) is replaced by a later run, so the demo never deletes what it did not write.
 OUTPUT_MARKER: Final = '.infinihand_demo'
 #: The resolved engine configuration the demo ran with, saved beside its outputs.
-ENGINE_CONFIG_FILE: Final = 'engine_config.yaml'
+#: The engine settings profile of the offline run (the sample bag is synthetic).
+PROFILE: Final = 'synthetic'
 #: Folder of ``--out`` with the evaluation's prediction file and plots.
 EVAL_DIR: Final = 'eval'
 #: Folder of ``--out`` with the live run (recording, logs, its evaluation), and its replay rate.
@@ -145,23 +146,25 @@ def validate_out(out: Path) -> None:
     check_writable_location(out, '--out')
 
 
-def run(out: Path, bag: Path) -> str:
-    """Run the demo into ``out`` (checked by ``validate_out``); return the report it prints."""
+def run(out: Path, bag: Path, overrides: Sequence[str] = ()) -> str:
+    """Run the demo into ``out`` (checked by ``validate_out``); return the report it prints.
+
+    The offline run uses the ``synthetic`` profile with bundle adjustment as offline runs have
+    it, then ``overrides`` (``--set``).
+    """
     validate_out(out)
     settings = load_sample_settings()
     report = ['Embedded sample bag:', describe_bag(bag)]
     cameras, wrists, visible = read_ground_truth(bag)
-    engine_config = load_engine_config()
-    engine_config = replace(engine_config, bundle_adjustment=for_offline_runs(
-        engine_config.bundle_adjustment or load_ba_config()))
+    applied = {**OFFLINE_BA, **parse_overrides(overrides)}
+    engine_config = build_engine_config(PROFILE, applied)
     with atomic_directory(out, overwrite=True) as work:
         summary = cli.generate(settings.synth, settings.spec.seed, settings.spec.frames, work,
                                settings.bag)
         fresh_cameras, fresh_wrists, _ = read_ground_truth(work / cli.BAG_DIR)
         (work / OUTPUT_MARKER).write_text('Written by python -m infinihand_ros.demo, which '
                                           'replaces this directory on its next run.\n')
-        (work / ENGINE_CONFIG_FILE).write_text(dump_config(engine_config, ENGINE_SECTION),
-                                               encoding='utf-8')
+        save_engine_settings(engine_config, work / SETTINGS_FILE, PROFILE, applied)
         evaluation, offline = evaluate_bag(bag, engine_config, work / EVAL_DIR)
         live = live_demo.run(LiveDemoOptions(work / LIVE_DIR, LIVE_RATE_HZ, 'none', 0.0), bag)
         live_text = live.text.replace(str(work), str(out))  # the final paths, not the staging
@@ -187,7 +190,7 @@ def run(out: Path, bag: Path) -> str:
         'of frames',
         f'  previews: {out / cli.FRAMES_PREVIEW}, {out / cli.TRAJECTORY_PREVIEW}',
         f'  bag: {out / cli.BAG_DIR}; training samples: {out / cli.SAMPLES_DIR}',
-        f'  resolved engine config: {out / ENGINE_CONFIG_FILE}',
+        f'  resolved engine settings: {out / SETTINGS_FILE}',
         '',
         evaluation,
         f'Prediction file and plots: {out / EVAL_DIR}',
@@ -209,9 +212,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--out', type=Path, default=Path('out/demo'),
                         help='output directory: new, empty or an earlier demo output '
                              '(replaced atomically; default out/demo)')
+    parser.add_argument('--set', dest='overrides', action='append', default=[],
+                        metavar='KEY=VALUE',
+                        help=f'override one engine setting of the offline run (profile '
+                             f'{PROFILE}, with bundle adjustment); repeatable')
     args = parser.parse_args(argv)
     try:
-        print(run(args.out, sample_bag_path()))
+        print(run(args.out, sample_bag_path(), args.overrides))
     except InfiniHandError as exc:
         print(f'error: {exc}', file=sys.stderr)
         return 2

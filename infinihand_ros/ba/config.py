@@ -234,19 +234,22 @@ class WorkerConfig:
 
 @dataclass(frozen=True)
 class BAConfig:
-    """All bundle-adjustment settings (``config/ba.yaml``, section ``ba``)."""
+    """All bundle-adjustment settings (``config/ba.yaml``, section ``ba``).
+
+    Attributes:
+        pool: the binary keyframe pool (which keyframes enter and are selected).
+        solver: the sparse solver (robust loss, iterations, gauge).
+        tracking: the feature tracks between the selected keyframes.
+        corrections: how BA's poses are checked and folded back into the stream.
+        worker: the background worker (queue length, what happens when it falls behind).
+
+    """
 
     pool: PoolConfig = field(default_factory=PoolConfig)
     solver: SolverConfig = field(default_factory=SolverConfig)
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     corrections: CorrectionConfig = field(default_factory=CorrectionConfig)
     worker: WorkerConfig = field(default_factory=WorkerConfig)
-
-
-def for_offline_runs(config: BAConfig) -> BAConfig:
-    """Return ``config`` with the stream waiting for BA: every pool selection gets refined."""
-    return dataclasses.replace(config,
-                               worker=dataclasses.replace(config.worker, when_behind='wait'))
 
 
 def load_ba_config(path: str | Path | None = None) -> BAConfig:

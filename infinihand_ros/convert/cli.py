@@ -33,7 +33,7 @@ from infinihand_ros.convert.run import RunOptions
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InfiniHandError
-from infinihand_ros.engine.hands.config import HAND_SOURCES
+from infinihand_ros.engine.settings import add_settings_arguments
 from tqdm import tqdm
 
 EXIT_OK: Final = 0
@@ -75,14 +75,9 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--resize', choices=RESIZE_MODES, help='how inputs of another size '
                         'are fitted: letterbox (scaled, padded black; the default) or crop '
                         '(scaled, centre-cropped)')
-    parser.add_argument('--engine-config', type=Path, help='engine YAML (default: '
-                        'config/engine.yaml)')
-    parser.add_argument('--hand-source', choices=HAND_SOURCES,
-                        help='where the hands come from: mediapipe (the default: MediaPipe '
-                        'Hands, trained on real photos, lifted to MANO; right for real '
-                        "recordings) or infinihand (the paper's hand branch; the bundled "
-                        'weights have seen only synthetic images)')
-    parser.add_argument('--no-ba', action='store_true', help='turn bundle adjustment off')
+    add_settings_arguments(parser, None, 'convert.engine.profile in --config: offline')
+    parser.add_argument('--no-ba', action='store_true',
+                        help='turn bundle adjustment off (as --set bundle_adjustment=null)')
     parser.add_argument('--no-estimates-bag', action='store_true',
                         help='do not write the MCAP bag of estimates per episode')
     parser.add_argument('--config', type=Path, help='converter settings (default: '
@@ -120,12 +115,12 @@ def validate_args(args: argparse.Namespace) -> tuple[ConvertConfig, RunOptions]:
     try:
         config = load_convert_config(args.config)
         engine = config.engine
+        if args.profile is not None:
+            engine = replace(engine, profile=args.profile)
         if args.engine_config is not None:
             engine = replace(engine, config=str(args.engine_config))
-        if args.hand_source is not None:
-            engine = replace(engine, hand_source=args.hand_source)
-        if args.no_ba:
-            engine = replace(engine, bundle_adjustment=False)
+        extra = tuple(args.overrides) + (('bundle_adjustment=null',) if args.no_ba else ())
+        engine = replace(engine, overrides=engine.overrides + extra)
         layout = config.dataset
         if args.video_size is not None:
             layout = replace(layout, video_size=args.video_size)

@@ -1,6 +1,6 @@
 """Settings of the bag-to-dataset converter (``config/convert.yaml``), checked at load.
 
-``convert`` -> ``engine`` (which engine file, mode and bundle adjustment) -> ``dataset`` (LeRobot
+``convert`` -> ``engine`` (the engine settings profile, file and overrides) -> ``dataset`` (LeRobot
 layout values) -> ``video`` (encoder) -> ``ray`` (``--ray`` workers). Command-line flags replace
 single values afterwards.
 """
@@ -19,9 +19,8 @@ from infinihand_ros.core.config import load_config
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.config import require_positive
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.engine.config import MODES
-from infinihand_ros.engine.hands.config import HAND_SOURCES
-from infinihand_ros.engine.hands.config import MEDIAPIPE
+from infinihand_ros.engine.settings import parse_overrides
+from infinihand_ros.engine.settings import PROFILES
 
 CONVERT_SECTION: Final = 'convert'
 #: PyAV encoders the writer accepts (H.264 and AV1, both in PyAV's wheels).
@@ -30,30 +29,25 @@ VIDEO_CODECS: Final = ('libx264', 'libsvtav1')
 
 @dataclass(frozen=True)
 class EngineChoice:
-    """Which engine runs the episodes (section ``convert.engine``).
+    """Which engine settings convert the episodes (section ``convert.engine``).
 
     Attributes:
-        config: engine YAML; '' for the package's ``config/engine.yaml``.
-        mode: 'windowed' (throughput) or 'per_frame'.
-        bundle_adjustment: run BA (the engine file's settings, else ``config/ba.yaml``).
-        hand_source: the engine's hand source: 'mediapipe' (real recordings: MediaPipe Hands
-            lifted to MANO) or 'infinihand' (the paper's hand branch; the bundled weights have
-            seen only synthetic images).
+        profile: the engine settings profile (``engine/settings.py``): 'offline' (windowed,
+            with bundle adjustment; real recordings, MediaPipe hands) unless another is named.
+        config: an engine settings file applied over the profile; '' for none.
+        overrides: ``key=value`` engine settings applied last (as ``--set``).
 
     """
 
+    profile: str = 'offline'
     config: str = ''
-    mode: str = 'windowed'
-    bundle_adjustment: bool = True
-    hand_source: str = MEDIAPIPE
+    overrides: tuple[str, ...] = ()
 
     def __post_init__(self) -> None:
-        if self.mode not in MODES:
-            raise ConfigError(f'convert.engine.mode must be one of {list(MODES)}, got '
-                              f'{self.mode!r}')
-        if self.hand_source not in HAND_SOURCES:
-            raise ConfigError(f'convert.engine.hand_source must be one of '
-                              f'{list(HAND_SOURCES)}, got {self.hand_source!r}')
+        if self.profile not in PROFILES:
+            raise ConfigError(f'convert.engine.profile must be one of {list(PROFILES)}, got '
+                              f'{self.profile!r}')
+        parse_overrides(self.overrides, 'convert.engine.overrides')
 
 
 @dataclass(frozen=True)

@@ -34,6 +34,7 @@ class Provenance:
         weights: part ('full', 'geometry', 'crop_encoder') -> {name, sha256} of each configured
             checkpoint; {'seeded': {'seed': N}} for untrained seeded weights.
         engine_config_sha256: SHA-256 of the resolved engine settings (sorted JSON).
+        engine_settings: the resolved engine settings themselves (``engine/settings.py``).
         package_version: the installed infinihand_ros version.
 
     """
@@ -41,6 +42,7 @@ class Provenance:
     hand_source: str
     weights: dict[str, dict[str, Any]]
     engine_config_sha256: str
+    engine_settings: dict[str, Any]
     package_version: str
 
     def to_dict(self) -> dict[str, Any]:
@@ -86,7 +88,9 @@ def provenance_of(config: EngineConfig) -> Provenance:
         CheckpointError: when a configured checkpoint cannot be found.
 
     """
-    settings = json.dumps(config_to_dict(config), sort_keys=True, default=str)
+    resolved = config_to_dict(config)
+    settings = json.dumps(resolved, sort_keys=True, default=str)
     return Provenance(hand_source=hand_source_of(config), weights=_weights(config),
                       engine_config_sha256=hashlib.sha256(settings.encode()).hexdigest(),
+                      engine_settings=resolved,
                       package_version=importlib.metadata.version(PACKAGE))

@@ -17,8 +17,6 @@ import logging
 from pathlib import Path
 from typing import Any, Protocol
 
-from infinihand_ros.ba.config import for_offline_runs
-from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.convert.bag_frames import read_bag_frames
 from infinihand_ros.convert.config import ConvertConfig
@@ -44,7 +42,7 @@ from infinihand_ros.convert.video_frames import read_video_frames
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import build_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from tqdm import tqdm
 
@@ -89,17 +87,9 @@ class EpisodeSink(Protocol):
 
 
 def engine_config_for(config: ConvertConfig) -> EngineConfig:
-    """Return the engine settings of ``config.engine`` (mode, BA and hand source applied).
-
-    A conversion is an offline run: with BA on, the stream waits for BA rather than dropping
-    pool selections (``ba.worker.when_behind: wait``).
-    """
+    """Return the engine settings of ``config.engine`` (profile, file, overrides)."""
     choice = config.engine
-    base = load_engine_config(Path(choice.config).expanduser() if choice.config else None)
-    ba = (for_offline_runs(base.bundle_adjustment or load_ba_config())
-          if choice.bundle_adjustment else None)
-    return replace(base, mode=choice.mode, bundle_adjustment=ba,
-                   hands=replace(base.hands, source=choice.hand_source))
+    return build_engine_config(choice.profile, choice.overrides, choice.config or None)
 
 
 def task_for(source: InputSource, config: ConvertConfig) -> str:

@@ -1,8 +1,9 @@
-"""Settings of the streaming engine: one tree, validated at load (``config/engine.yaml``).
+"""Settings of the streaming engine: one tree of dataclasses, the only place defaults live.
 
+Profiles, overrides and the generated ``config/engine.yaml`` are in ``engine/settings.py``.
 ``engine`` -> ``model`` (geometry and hand-branch configs, hand model incl. real MANO, weights)
 -> ``detection`` -> ``metric_scale`` -> ``pose_track`` -> ``tracker`` -> ``bundle_adjustment``
-(BA settings, or null for none). Every value is checked when the file is loaded; errors name
+(BA settings, or null for none). Every value is checked when it is built; errors name
 the key, e.g. ``engine.model.hand_model.mano_dir`` or
 ``engine.bundle_adjustment.tracking.klt_window_px``.
 In YAML, ``bundle_adjustment`` may be ``null`` (off), ``true`` (the package's
@@ -11,14 +12,9 @@ In YAML, ``bundle_adjustment`` may be ``null`` (off), ``true`` (the package's
 
 from dataclasses import dataclass
 from dataclasses import field
-from pathlib import Path
 from typing import Final
 
-from infinihand_ros.ba.config import BA_SECTION
 from infinihand_ros.ba.config import BAConfig
-from infinihand_ros.core.config import config_dir
-from infinihand_ros.core.config import config_from_dict
-from infinihand_ros.core.config import read_yaml
 from infinihand_ros.core.config import require_at_least
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.camera_tracker import TrackerConfig
@@ -69,10 +65,12 @@ class ModelSelection:
     """Which model the engine runs (section ``engine.model``).
 
     Attributes:
-        geometry: geometry-branch config, a name ('tiny', 'paper') or a YAML path.
+        geometry: geometry-branch config, a name ('tiny', 'tiny_336': the bundled model's,
+            'paper') or a YAML path.
         hand_branch: hand-branch config, a name ('tiny', 'paper') or a YAML path.
         hand_model: the hand model (built-in skeleton, or real MANO from ``mano_dir``).
-        checkpoint: our whole-model checkpoint directory (its configs win), or None.
+        checkpoint: a bundled model (``models/<name>``, with its card) or our whole-model
+            checkpoint directory (its configs win); None: seeded weights.
         geometry_weights: a converted LingBot-Map/VGGT checkpoint directory for the geometry
             branch (``model/io/convert``), or None.
         crop_encoder_weights: a converted WiLoR checkpoint directory for the crop encoder, or
@@ -81,10 +79,10 @@ class ModelSelection:
 
     """
 
-    geometry: str = 'tiny'
+    geometry: str = 'tiny_336'
     hand_branch: str = 'tiny'
     hand_model: HandModelConfig = field(default_factory=HandModelConfig)
-    checkpoint: str | None = None
+    checkpoint: str | None = 'tiny_synthetic'
     geometry_weights: str | None = None
     crop_encoder_weights: str | None = None
     seed: int = 0
@@ -107,14 +105,14 @@ class DetectionConfig:
             do not stretch the box (ours; the paper boxes every pixel above the threshold).
         region_join_px: with ``peak_region``, mask fragments up to ``2 * region_join_px + 1``
             model-input pixels apart count as one region, so a hand whose mask breaks into
-            pieces is boxed whole (ours; 0: plain 8-connectivity).
+            pieces is boxed whole (ours; 14: one patch; 0: plain 8-connectivity).
 
     """
 
     presence_threshold: float = 0.5
     fov_range_deg: tuple[float, float] = (5.0, 170.0)
-    peak_region: bool = False
-    region_join_px: int = 0
+    peak_region: bool = True
+    region_join_px: int = 14
 
     def __post_init__(self) -> None:
         if not 0.0 < self.fov_range_deg[0] < self.fov_range_deg[1] < 180.0:
@@ -153,9 +151,8 @@ class EngineConfig:
             Below ``geometry_interval`` (when that is above 1).
         device: torch device ('cpu', 'cuda', 'cuda:1', ...), checked at load.
         cpu_precision: on the CPU, 'auto' runs the aggregator in bf16 where the CPU computes
-            bf16 natively (AVX512-BF16 or AMX, checked at start-up; float32 elsewhere), 'fp32'
-            (the default here; ``config/engine.yaml`` says 'auto') is the float32 reference
-            path. CUDA follows the model's ``autocast_bf16``.
+            bf16 natively (AVX512-BF16 or AMX, checked at start-up; float32 elsewhere); 'fp32'
+            is the float32 reference path. CUDA follows the model's ``autocast_bf16``.
         model: the model and its weights.
         detection: hand detection thresholds and the FoV clamp.
         metric_scale: running metric-scale estimate from the hands.
@@ -181,10 +178,10 @@ class EngineConfig:
     mode: str = 'per_frame'
     window: int = 16
     keyframe_interval: int = 1
-    geometry_interval: int = 1
-    geometry_lag: int = 0
+    geometry_interval: int = 3
+    geometry_lag: int = 2
     device: str = 'cpu'
-    cpu_precision: str = 'fp32'
+    cpu_precision: str = 'auto'
     model: ModelSelection = field(default_factory=ModelSelection)
     detection: DetectionConfig = field(default_factory=DetectionConfig)
     metric_scale: MetricScaleConfig = field(default_factory=MetricScaleConfig)
@@ -217,29 +214,3 @@ class EngineConfig:
                               f'{self.geometry_interval - 1} or less (the outputs of a '
                               'geometry frame are taken in before the next one runs)')
         check_device(self.device)
-
-
-def load_engine_config(path: str | Path | None = None) -> EngineConfig:
-    """Load ``config/engine.yaml`` (or ``path``), resolving ``bundle_adjustment`` files.
-
-    Raises:
-        ConfigError: for a missing or unreadable file, unknown keys, wrong types or values
-            (naming the key).
-
-    """
-    path = Path(path) if path is not None else config_dir() / 'engine.yaml'
-    data = read_yaml(path)
-    if not isinstance(data, dict) or ENGINE_SECTION not in data:
-        raise ConfigError(f'{path}: no {ENGINE_SECTION!r} section')
-    section = dict(data[ENGINE_SECTION] or {})
-    ba = section.get('bundle_adjustment')
-    if ba is True or isinstance(ba, str):
-        ba_path = config_dir() / 'ba.yaml' if ba is True else Path(ba).expanduser()
-        ba_data = read_yaml(ba_path)
-        if not isinstance(ba_data, dict) or BA_SECTION not in ba_data:
-            raise ConfigError(f'{path}: engine.bundle_adjustment: {ba_path} has no '
-                              f'{BA_SECTION!r} section')
-        section['bundle_adjustment'] = ba_data[BA_SECTION]
-    elif ba is False:
-        section['bundle_adjustment'] = None
-    return config_from_dict(EngineConfig, section, f'{path}: {ENGINE_SECTION}')

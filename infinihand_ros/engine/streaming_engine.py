@@ -72,7 +72,6 @@ from infinihand_ros.engine.camera_space import tracking_view
 from infinihand_ros.engine.camera_tracker import TrackerMoment
 from infinihand_ros.engine.camera_tracker import TrackingView
 from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.frame_input import check_image
 from infinihand_ros.engine.frame_input import check_intrinsics
 from infinihand_ros.engine.frame_input import fit_image
@@ -147,7 +146,8 @@ class StreamingEngine:
         """Build the engine (and its model, unless one is given) from ``config``.
 
         Args:
-            config: the engine config (``config/engine.yaml`` if None).
+            config: the engine settings (``build_engine_config``); None: the defaults, the
+                ``live`` profile (real camera images).
             model: a built model to use instead of building one from ``config``.
             ba_backend: where keyframes go for bundle adjustment; None: an ``InProcessBA``
                 when ``config.bundle_adjustment`` is set, else no BA. Not with
@@ -157,7 +157,7 @@ class StreamingEngine:
             ConfigError: for a BA backend with ``camera_motion: static``.
 
         """
-        self.config = config or load_engine_config()
+        self.config = config or EngineConfig()
         self.static = self.config.camera_motion == 'static'
         self._tracking = self.config.tracker.enabled and not self.static  # images to track
         if ba_backend is not None and self.static:

@@ -6,19 +6,22 @@ the PNG plots (``plots``). Exit codes: 0 done, 1 a sequence failed to run or wri
 """
 
 import argparse
-import dataclasses
 from dataclasses import dataclass
 import json
 import logging
 from pathlib import Path
 import sys
 
-from infinihand_ros.ba.config import for_offline_runs
-from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import add_settings_arguments
+from infinihand_ros.engine.settings import build_engine_config
+from infinihand_ros.engine.settings import checkpoint_overrides
+from infinihand_ros.engine.settings import OFFLINE_BA
+from infinihand_ros.engine.settings import parse_overrides
+from infinihand_ros.engine.settings import save_engine_settings
+from infinihand_ros.engine.settings import SETTINGS_FILE
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.eval import baselines
 from infinihand_ros.eval.plots import write_plots
@@ -48,9 +51,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--sequences', nargs='+', required=True, help='held-out sequences')
     parser.add_argument('--checkpoint', help='whole-model checkpoint directory (default: the '
                                              "engine config's, i.e. the embedded model)")
-    parser.add_argument('--engine-config', help='engine YAML (default: config/engine.yaml)')
-    parser.add_argument('--mode', choices=('per_frame', 'windowed'),
-                        help="engine mode (default: the engine config's)")
+    add_settings_arguments(parser, 'synthetic')
     parser.add_argument('--ba', action='store_true',
                         help='run bundle adjustment (config/ba.yaml; the stream waits for BA '
                              'instead of dropping pool selections, as an offline run should)')
@@ -68,19 +69,15 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def engine_config(args: argparse.Namespace) -> EngineConfig:
-    """Return the engine config the arguments ask for."""
-    config = load_engine_config(args.engine_config)
+    """Return the engine settings the arguments ask for (profile, file, --ba, --set)."""
+    overrides: dict[str, object] = {}
     if args.checkpoint is not None:
         resolve_checkpoint(args.checkpoint)  # a directory or a bundled name, else an error
-        model = dataclasses.replace(config.model, checkpoint=args.checkpoint,
-                                    geometry_weights=None, crop_encoder_weights=None)
-        config = dataclasses.replace(config, model=model)
-    if args.mode is not None:
-        config = dataclasses.replace(config, mode=args.mode)
+        overrides.update(checkpoint_overrides(args.checkpoint))
     if args.ba:
-        config = dataclasses.replace(config,
-                                     bundle_adjustment=for_offline_runs(load_ba_config()))
-    return config
+        overrides.update(OFFLINE_BA)
+    overrides.update(parse_overrides(args.overrides))
+    return build_engine_config(args.profile, overrides, args.engine_config)
 
 
 def mean_pose_joints(explicit: str | None, config: EngineConfig,
@@ -129,6 +126,7 @@ class EvaluationPlan:
     mean_pose: np.ndarray
     mean_pose_source: str
     poses: str
+    profile: str
 
 
 def prepare(args: argparse.Namespace) -> EvaluationPlan:
@@ -141,8 +139,11 @@ def prepare(args: argparse.Namespace) -> EvaluationPlan:
                               f'files), got {names}')
     if args.save_predictions is not None:
         check_writable_location(args.save_predictions, '--save-predictions')
+        args.save_predictions.mkdir(parents=True, exist_ok=True)
+        save_engine_settings(config, args.save_predictions / SETTINGS_FILE, args.profile,
+                             args.overrides)
     joints, source = mean_pose_joints(args.mean_pose, config, sequences)
-    return EvaluationPlan(config, sequences, joints, source, args.poses)
+    return EvaluationPlan(config, sequences, joints, source, args.poses, args.profile)
 
 
 def execute(plan: EvaluationPlan, save_to: Path | None
@@ -161,7 +162,8 @@ def execute(plan: EvaluationPlan, save_to: Path | None
     config = plan.config
     evaluation = evaluate(plan.sequences, lambda: StreamingEngine(config), plan.mean_pose,
                           on_sequence, plan.poses)
-    settings = {'checkpoint': config.model.checkpoint, 'mode': config.mode,
+    settings = {'profile': plan.profile, 'checkpoint': config.model.checkpoint,
+                'mode': config.mode,
                 'hand_source': config.hands.source,
                 'bundle_adjustment': config.bundle_adjustment is not None,
                 'poses': plan.poses, 'mean_pose': plan.mean_pose_source}
@@ -185,7 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     if args.json:
         print(json_line(evaluation, settings))
     else:
-        print(f"hand source: {settings['hand_source']}, poses: {settings['poses']}\n")
+        print(f"profile: {settings['profile']}, hand source: {settings['hand_source']}, "
+              f"poses: {settings['poses']}\n")
         print(markdown_tables(evaluation))
         print(sequence_table(evaluation))
     return 0

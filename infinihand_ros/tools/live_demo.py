@@ -25,9 +25,9 @@ from infinihand_ros.core import topics
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.core.units import NS_PER_S
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.hands.config import HAND_SOURCES
 from infinihand_ros.engine.hands.config import INFINIHAND
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.eval.cli import mean_pose_joints
 from infinihand_ros.eval.cli import save_outputs
 from infinihand_ros.eval.recorded import evaluate_recorded

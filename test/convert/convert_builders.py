@@ -66,7 +66,7 @@ def rgb_frames(count: int, seed: int = 0) -> list[np.ndarray]:
 
 def fast_config(path: Path, **overrides: object) -> Path:
     """Write a converter config without bundle adjustment (fast tests); return its path."""
-    settings = {'fps': 10, 'engine': {'bundle_adjustment': False}}
+    settings = {'fps': 10, 'engine': {'overrides': ['bundle_adjustment=null']}}
     settings.update(overrides)
     path.write_text(yaml.safe_dump({'convert': settings}), encoding='utf-8')
     return path

@@ -276,7 +276,7 @@ def test_usage_errors(tmp_path: Path) -> None:
 def test_time_windows_with_bundle_adjustment(synth_bags: list[Path], tmp_path: Path) -> None:
     """--episode-seconds splits a bag into episodes; BA runs and reports its statistics."""
     output = tmp_path / 'dataset'
-    config = fast_config(tmp_path / 'ba.yaml', engine={'bundle_adjustment': True})
+    config = fast_config(tmp_path / 'ba.yaml', engine={})
     rc = main([str(synth_bags[0]), '--output', str(output), '--config', str(config), '--quiet',
                '--episode-seconds', '0.3'])
     assert rc == EXIT_OK
@@ -290,7 +290,7 @@ def test_time_windows_with_bundle_adjustment(synth_bags: list[Path], tmp_path: P
 def test_conversion_waits_for_ba_instead_of_dropping(tmp_path: Path) -> None:
     """A conversion is offline: with BA on, every pool selection is refined (none dropped)."""
     with_ba = load_convert_config(fast_config(tmp_path / 'ba.yaml',
-                                              engine={'bundle_adjustment': True}))
+                                              engine={}))
     without = load_convert_config(fast_config(tmp_path / 'plain.yaml'))
     assert run_module.engine_config_for(with_ba).bundle_adjustment.worker.when_behind == 'wait'
     assert run_module.engine_config_for(without).bundle_adjustment is None

@@ -18,7 +18,7 @@ from dataclasses import replace
 from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.run import engine_config_for
 from infinihand_ros.core.datatypes import Intrinsics
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.photo_streams import as_webcam
 from infinihand_ros.synth.photo_streams import hand_and_arm_patch

@@ -6,7 +6,7 @@ from infinihand_ros.core.config import load_config
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.engine.config import check_device
 from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.model.infinihand_model import load_branch_configs
 from infinihand_ros.model.io.bundled import resolve_checkpoint
 from infinihand_ros.model.io.checkpoint import read_checkpoint

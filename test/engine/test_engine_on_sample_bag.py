@@ -1,7 +1,7 @@
 """The untrained tiny model runs end to end on the bundled sample bag."""
 
+from engine_configs import seeded_tiny
 from infinihand_ros.bag.camera_stream import read_camera_frames
-from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sample_bag import sample_bag_path
 import numpy as np
@@ -13,7 +13,7 @@ FRAMES = 30
 @pytest.mark.slow
 def test_one_result_per_bag_frame_with_the_right_shapes() -> None:
     frames = list(read_camera_frames(sample_bag_path(), max_frames=FRAMES))
-    with StreamingEngine(EngineConfig(mode='windowed', window=8, depth_maps=True)) as engine:
+    with StreamingEngine(seeded_tiny(mode='windowed', window=8, depth_maps=True)) as engine:
         results = []
         for frame in frames:
             results += engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)

@@ -13,13 +13,13 @@ from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import OPENPOSE_TO_MANO
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.hand_conventions import WRIST
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.hands.boxes import box_iou
 from infinihand_ros.engine.hands.boxes import landmark_box
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
 from infinihand_ros.engine.output.config import SmoothingConfig
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.mano.kinematics import PARENTS_WITH_TIPS

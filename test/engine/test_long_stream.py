@@ -12,7 +12,7 @@ from dataclasses import replace
 import os
 from pathlib import Path
 
-from infinihand_ros.engine.config import EngineConfig
+from engine_configs import seeded_tiny
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.model.config import load_geometry_config
 from infinihand_ros.model.config import named_config_path
@@ -43,7 +43,7 @@ def test_long_stream_keeps_memory_flat() -> None:
     model = build_infinihand_model(geometry, load_hand_branch_config('tiny'), seed=0).eval()
     frames = list(SyntheticSequence(SynthConfig(width=112, height=84), seed=2, num_frames=30))
     rss = {}
-    config = EngineConfig()
+    config = seeded_tiny()
     config = replace(config, pose_track=replace(config.pose_track, capacity=256),
                      metric_scale=replace(config.metric_scale, history=50))
     with StreamingEngine(config, model) as engine:

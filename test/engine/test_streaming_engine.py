@@ -4,6 +4,7 @@ from dataclasses import replace
 import threading
 import time
 
+from engine_configs import seeded_tiny
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.ba.config import PoolConfig
 from infinihand_ros.ba.config import SolverConfig
@@ -21,10 +22,10 @@ from infinihand_ros.engine import ba_in_process
 from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.pose_track import PoseTrackConfig
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import _Gate
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sequence import SynthConfig
@@ -33,7 +34,7 @@ import numpy as np
 import pytest
 import torch
 
-CONFIG = EngineConfig(keyframe_interval=2)
+CONFIG = seeded_tiny(keyframe_interval=2)
 NUM_FRAMES = 7
 
 

@@ -5,9 +5,9 @@ import json
 from pathlib import Path
 
 import cv2
+from engine_configs import seeded_tiny
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.eval import baselines
 from infinihand_ros.eval.cli import main
@@ -107,7 +107,7 @@ def test_missing_results_and_hands_leave_the_scored_pairs(sequence: EvalSequence
 
 def test_without_a_training_mean_the_sequences_own_mean_is_used(
         sequence: EvalSequence) -> None:
-    joints, source = mean_pose_joints(None, EngineConfig(), [sequence])
+    joints, source = mean_pose_joints(None, seeded_tiny(), [sequence])
     assert source == 'evaluated sequences'
     truth = sequence.truth
     poses = [truth.hand_pose[truth.visible[:, side], side] for side in (0, 1)]

@@ -8,7 +8,7 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import RIGHT
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.mano import builtin
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.mano.hand_model import build_hand_model

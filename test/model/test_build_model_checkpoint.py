@@ -6,9 +6,9 @@ from infinihand_ros.core.errors import CheckpointError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.config import ModelSelection
 from infinihand_ros.engine.model_builder import build_model
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.model.hand.config import HandBranchConfig
 from infinihand_ros.model.infinihand_model import build_infinihand_model
@@ -26,8 +26,8 @@ import torch
 
 
 def _engine(**model: object) -> EngineConfig:
-    """Return the default engine config with ``engine.model`` fields replaced."""
-    return EngineConfig(model=ModelSelection(**model))
+    """Return the default engine config with ``engine.model`` fields (seeded: no checkpoint)."""
+    return EngineConfig(model=ModelSelection(**{'checkpoint': None, **model}))
 
 
 def _assert_same_weights(ours: InfiniHandModel, theirs: InfiniHandModel) -> None:

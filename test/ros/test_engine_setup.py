@@ -1,13 +1,14 @@
-"""The node's engine configuration (ros/estimator/engine_setup.py)."""
+"""The node's engine settings (ros/estimator/engine_setup.py)."""
 
 from dataclasses import replace
 from pathlib import Path
 
 from infinihand_ros.ba.config import load_ba_config
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.config import EngineConfig
+from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.output.config import SmoothingConfig
-from infinihand_ros.ros.estimator.config import CameraSettings
+from infinihand_ros.engine.settings import build_engine_config
 from infinihand_ros.ros.estimator.config import EngineSelection
 from infinihand_ros.ros.estimator.config import EstimatorConfig
 from infinihand_ros.ros.estimator.engine_setup import engine_config_for
@@ -19,44 +20,49 @@ def _node(**selection: object) -> EstimatorConfig:
     return EstimatorConfig(engine=EngineSelection(**selection))
 
 
-def test_defaults_are_the_engine_file_with_the_node_settings() -> None:
-    """Defaults: config/engine.yaml with MediaPipe hands, no BA, geometry two frames late.
-
-    (The engine file takes a frame's owed geometry in before the next frame.) in_process BA:
-    config/ba.yaml.
-    """
+def test_defaults_are_the_live_profile() -> None:
+    """The node's defaults are the engine's (the live profile): MediaPipe hands, no BA."""
     node = engine_config_for(_node())
-    assert node.hands.source == 'mediapipe' and load_engine_config().hands.source == 'infinihand'
-    assert load_engine_config().bundle_adjustment is None and node.bundle_adjustment is None
-    assert (node.geometry_lag, load_engine_config().geometry_lag) == (2, 0)
-    assert node == replace(load_engine_config(), hands=node.hands, geometry_lag=2)
+    assert node == EngineConfig() == build_engine_config('live')
+    assert node.hands.source == 'mediapipe' and node.bundle_adjustment is None
     assert engine_config_for(_node(bundle_adjustment='in_process')).bundle_adjustment == \
-        load_ba_config()
-    config = engine_config_for(_node(mode='windowed', keyframe_interval=3, geometry_interval=1,
-                                     bundle_adjustment='none'))
-    assert (config.mode, config.keyframe_interval, config.geometry_interval) == ('windowed', 3, 1)
-    assert config.bundle_adjustment is None
+        replace(load_ba_config(), worker=replace(load_ba_config().worker, when_behind='drop'))
+
+
+def test_profile_and_set_reach_the_engine() -> None:
+    """engine.profile names the profile; engine.set overrides it, last."""
+    teleop = engine_config_for(_node(profile='teleop'))
+    assert teleop.camera_motion == 'static'
+    config = engine_config_for(_node(profile='offline', bundle_adjustment='none',
+                                     set='geometry_interval=1 keyframe_interval=3'))
+    assert (config.mode, config.keyframe_interval, config.geometry_interval) == \
+        ('windowed', 3, 1)
+    assert config.bundle_adjustment is None  # the node's none wins over the profile's BA
+    synthetic = engine_config_for(_node(profile='synthetic'))
+    assert synthetic.hands.source == 'infinihand'  # hands.* left at its default: the profile's
 
 
 def test_in_process_ba_never_makes_the_node_wait(tmp_path: Path) -> None:
-    """An engine file whose BA waits for room (offline settings) still drops in the node."""
+    """A settings file whose BA waits for room (offline settings) still drops in the node."""
     engine_file = tmp_path / 'engine.yaml'
     engine_file.write_text('engine:\n  bundle_adjustment:\n    pool: {trigger: 8, stride: 2}\n'
                            '    worker: {when_behind: wait}\n')
-    assert load_engine_config(engine_file).bundle_adjustment.worker.when_behind == 'wait'
     ba = engine_config_for(_node(config=str(engine_file),
                                  bundle_adjustment='in_process')).bundle_adjustment
     assert ba.worker.when_behind == 'drop'
     assert ba.pool.trigger == 8
 
 
-def test_camera_motion_and_output_parameters_reach_the_engine() -> None:
-    """camera.motion is the engine's camera_motion; smoothing.* its output stage's."""
+def test_engine_section_parameters_reach_the_engine() -> None:
+    """hands.* and smoothing.* are the engine's sections; a changed one wins over the profile."""
     smoothing = SmoothingConfig(mode='one_euro', beta=0.5)
-    config = engine_config_for(EstimatorConfig(camera=CameraSettings(motion='static'),
-                                               smoothing=smoothing))
-    assert config.camera_motion == 'static'
+    config = engine_config_for(EstimatorConfig(
+        engine=EngineSelection(profile='synthetic'), smoothing=smoothing,
+        hands=HandsConfig(source='mediapipe', min_confidence=0.7)))
     assert config.output.smoothing == smoothing
+    assert config.hands.min_confidence == 0.7
+    # source left at its default: the synthetic profile's infinihand stands
+    assert config.hands.source == 'infinihand'
 
 
 def test_checkpoint_parameter_replaces_the_model_weights(tmp_path: Path) -> None:
@@ -66,15 +72,18 @@ def test_checkpoint_parameter_replaces_the_model_weights(tmp_path: Path) -> None
 
 
 @pytest.mark.parametrize('selection,match', [
-    (EngineSelection(checkpoint='/no/such/checkpoint'), 'engine.checkpoint'),
-    (EngineSelection(config='/no/such/engine.yaml'), 'engine.config'),
-    (EngineSelection(device='cuda:99'), 'engine.device'),
-    (EngineSelection(device='tpu'), 'engine.device'),
+    ({'checkpoint': '/no/such/checkpoint'}, 'engine.checkpoint'),
+    ({'config': '/no/such/engine.yaml'}, 'engine.config'),
+    ({'set': 'device=cuda:99'}, 'engine.device'),
+    ({'set': 'device=tpu'}, 'engine.device'),
+    ({'set': 'geometry_interval'}, 'engine.set'),
+    ({'set': 'no_such_setting=1'}, 'no_such_setting'),
+    ({'profile': 'lab'}, 'engine.profile'),
 ])
-def test_bad_engine_parameters_are_named(selection: EngineSelection, match: str) -> None:
-    """Missing paths and unusable devices raise ConfigError naming the parameter."""
+def test_bad_engine_parameters_are_named(selection: dict, match: str) -> None:
+    """Missing paths, unusable devices and bad overrides raise ConfigError naming them."""
     with pytest.raises(ConfigError, match=match):
-        engine_config_for(EstimatorConfig(engine=selection))
+        engine_config_for(_node(**selection))
 
 
 def test_node_bundle_adjustment_runs_no_ba_in_the_engine() -> None:

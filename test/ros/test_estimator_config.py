@@ -67,8 +67,8 @@ def test_unflatten_nests_dotted_names() -> None:
 
 @pytest.mark.parametrize('name,value,match', [
     ('smoothing.mode', 'kalman', 'smoothing.mode'),
-    ('camera.motion', 'moving', 'camera.motion'),
-    ('engine.mode', 'batch', 'engine.mode'),
+    ('engine.profile', 'lab', 'engine.profile'),
+    ('engine.set', 'geometry_interval', 'engine.set'),
     ('engine.bundle_adjustment', 'remote', 'engine.bundle_adjustment'),
     ('ba_node.timeout_s', 0.0, 'ba_node.timeout_s'),
     ('camera.fallback.fx', 500.0, 'camera.fallback'),

@@ -19,7 +19,6 @@ from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.output_fields import hand_output
 from infinihand_ros.engine.streaming_engine import StreamingEngine
-from infinihand_ros.ros.estimator.config import CameraSettings
 from infinihand_ros.ros.estimator.config import EngineSelection
 from infinihand_ros.ros.estimator.config import EstimatorConfig
 from infinihand_ros.ros.estimator.engine_setup import engine_config_for
@@ -104,8 +103,8 @@ def _model_fov_stamps(recorded_infos: list) -> set[int]:
                                rtol=1e-9, atol=0.0)}
 
 
-def _offline(stamps: list[int], model_fov: set[int], motion: str = 'estimate') -> list:
-    """Run the node's engine (``camera.motion``: ``motion``) offline on the frames with ``stamps``.
+def _offline(stamps: list[int], model_fov: set[int], profile: str = 'live') -> list:
+    """Run the node's engine (``engine.profile``) offline on the frames with ``stamps``.
 
     Frames in ``model_fov`` get no intrinsics (the model's field of view), as they did live.
     On one torch thread, as the node (``ros_env`` sets ``OMP_NUM_THREADS=1``): with another
@@ -113,8 +112,7 @@ def _offline(stamps: list[int], model_fov: set[int], motion: str = 'estimate') -
     hand box by a pixel and the hand by centimetres.
     """
     # The node's defaults (config/estimator.yaml is made from them) but BA, as the node ran.
-    config = EstimatorConfig(engine=EngineSelection(bundle_adjustment=NO_BA),
-                             camera=CameraSettings(motion=motion))
+    config = EstimatorConfig(engine=EngineSelection(bundle_adjustment=NO_BA, profile=profile))
     wanted = set(stamps)
     outputs = []
     threads = torch.get_num_threads()
@@ -205,7 +203,7 @@ def _landmarks(msg) -> np.ndarray:
 
 def test_a_fixed_camera_reads_hands_on_arrival_and_matches_the_engine_offline(
         tmp_path: Path) -> None:
-    """camera.motion static: each image's hands are read from its arrival (detect_ahead).
+    """Profile teleop (a fixed camera): hands read from each image's arrival (detect_ahead).
 
     Replayed at 5 images/s the node processes every frame in order, so its hands equal the
     engine's offline on the same frames; the camera stays the world frame.
@@ -215,7 +213,7 @@ def test_a_fixed_camera_reads_hands_on_arrival_and_matches_the_engine_offline(
     lossless.write_text(LOSSLESS_INPUT)
     params = ['--params-file', str(SHARE / 'config' / 'estimator.yaml'),
               '--params-file', str(lossless), '-p', f'engine.bundle_adjustment:={NO_BA}',
-              '-p', 'camera.motion:=static']
+              '-p', 'engine.profile:=teleop']
     node_log = tmp_path / 'estimator.log'
     with running('estimator', ['--ros-args', *params, *REMAPS], env, node_log) as node, \
             running('record', ['-o', str(tmp_path / 'out'), *OUTPUTS], env,
@@ -240,7 +238,7 @@ def test_a_fixed_camera_reads_hands_on_arrival_and_matches_the_engine_offline(
                                     pose.orientation.x, pose.orientation.y, pose.orientation.z,
                                     pose.orientation.w], [0, 0, 0, 0, 0, 0, 1], atol=1e-12)
     offline = {out.timestamp_ns: out for out in _offline(
-        stamps, _model_fov_stamps(recorded[f'{NODE}/camera_info']), motion='static')}
+        stamps, _model_fov_stamps(recorded[f'{NODE}/camera_info']), profile='teleop')}
     found = 0
     for side, topic in ((LEFT, f'{NODE}/hands/left/landmarks'),
                         (RIGHT, f'{NODE}/hands/right/landmarks')):

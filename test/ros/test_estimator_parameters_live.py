@@ -26,7 +26,8 @@ def run_estimator(args: list[str]) -> subprocess.CompletedProcess:
     ('smoothing.mode:=kalman', 'smoothing.mode'),
     ('smoothing.beta:=-1.0', 'smoothing.beta'),
     ('outputs.path_length:=ten', 'outputs.path_length'),
-    ('camera.motion:=moving', 'camera.motion'),
+    ('engine.profile:=lab', 'engine.profile'),
+    ("engine.set:='geometry_interval=0'", 'geometry_interval'),
 ])
 def test_bad_parameter_stops_the_node_naming_it(override: str, name: str) -> None:
     """A bad -p value: exit code 1 and an error line naming the parameter."""
@@ -48,9 +49,9 @@ def test_bad_params_file_value_stops_the_node(tmp_path: Path) -> None:
 def test_renamed_node_gets_the_shipped_params_file(tmp_path: Path) -> None:
     """The shipped file (keyed /**) reaches a node renamed with __node:=; a bad value stops it."""
     shipped = (SHARE / 'config' / 'estimator.yaml').read_text()
-    assert 'motion: estimate\n' in shipped
+    assert 'profile: live\n' in shipped
     params = tmp_path / 'estimator.yaml'
-    params.write_text(shipped.replace('motion: estimate\n', 'motion: moving\n'))
+    params.write_text(shipped.replace('profile: live\n', 'profile: lab\n'))
     done = run_estimator(['-r', '__node:=renamed_estimator', '--params-file', str(params)])
     assert done.returncode == 1, done.stderr
-    assert 'camera.motion' in done.stderr and 'cannot start' in done.stderr
+    assert 'engine.profile' in done.stderr and 'cannot start' in done.stderr

@@ -166,7 +166,7 @@ def test_each_frame_is_one_tf_message(generated: tuple[type, type]) -> None:
 
 
 def test_a_fixed_camera_goes_once_to_tf_static(generated: tuple[type, type]) -> None:
-    """camera.motion static: world -> camera latched on /tf_static once; /tf has the wrists."""
+    """A fixed camera (profile teleop): world -> camera once on /tf_static; /tf has the wrists."""
     node = _publish_frames(TFSettings(), static_camera=True)
     static = node.publishers[publishers.TF_STATIC_TOPIC]
     assert static.qos.durability == publishers.LATCHED_QOS.durability

@@ -15,7 +15,7 @@ HAND_SOURCES: Final = (INFINIHAND, MEDIAPIPE)
 class HandsConfig:
     """Where the engine's camera-space hands come from, and which of them count."""
 
-    source: str = parameter(INFINIHAND, "Hand source: infinihand (the paper's hand branch; the "
+    source: str = parameter(MEDIAPIPE, "Hand source: infinihand (the paper's hand branch; the "
                             'bundled weights have seen only synthetic images); mediapipe '
                             '(MediaPipe Hands, trained on real photos, lifted to MANO).',
                             choices=HAND_SOURCES)

@@ -5,10 +5,9 @@ every parameter: default, description, range and choices (``core.parameters``); 
 declares them from it, and ``config/estimator.yaml`` is generated from it
 (``python -m infinihand_ros.ros.params_files --write``; a test fails when they differ).
 ``estimator_config_from_parameters`` builds and checks the tree from flat parameter values,
-raising ``ConfigError`` that names the parameter. ``camera.motion``, ``hands.*``,
-``identity.*``, ``shape.*`` and ``smoothing.*`` are settings of the engine
-(``engine_setup.py``). The node's hand source is MediaPipe by default: it runs on real camera
-images, and the bundled InfiniHand weights have seen only synthetic ones.
+raising ``ConfigError`` that names the parameter. ``engine.*`` name the engine's settings
+(profile, file, overrides); ``hands.*``, ``identity.*``, ``shape.*`` and ``smoothing.*`` are the
+engine's own sections, declared from its dataclasses (``engine_setup.py``).
 """
 
 from dataclasses import dataclass
@@ -22,13 +21,13 @@ from infinihand_ros.core.parameters import check_parameters
 from infinihand_ros.core.parameters import nested
 from infinihand_ros.core.parameters import parameter
 from infinihand_ros.core.parameters import unflatten
-from infinihand_ros.engine.config import CAMERA_MOTIONS
-from infinihand_ros.engine.config import MODES
 from infinihand_ros.engine.hands.config import HandsConfig
-from infinihand_ros.engine.hands.config import MEDIAPIPE
 from infinihand_ros.engine.output.config import IdentityConfig
 from infinihand_ros.engine.output.config import ShapeConfig
 from infinihand_ros.engine.output.config import SmoothingConfig
+from infinihand_ros.engine.settings import DEFAULT_PROFILE
+from infinihand_ros.engine.settings import PROFILES
+from infinihand_ros.engine.settings import split_overrides
 
 NODE_NAME: Final = 'infinihand_estimator'
 PARAMS_FILE: Final = 'estimator.yaml'
@@ -39,27 +38,20 @@ _BIG_INT: Final = 2 ** 31 - 1
 
 @dataclass(frozen=True)
 class EngineSelection:
-    """Which engine the node runs (parameters ``engine.*``)."""
+    """Which engine settings the node runs (parameters ``engine.*``)."""
 
-    config: str = parameter('', "Engine YAML (config/engine.yaml layout); empty: the package's "
-                            'config/engine.yaml.')
+    profile: str = parameter(DEFAULT_PROFILE, 'Engine settings profile (config/engine.yaml '
+                             'lists what each changes): live (a moving camera), teleop (a fixed '
+                             'camera: its pose is the world frame), offline, synthetic (our '
+                             "synthetic data: the paper's hand branch).", choices=tuple(PROFILES))
+    set: str = parameter(  # noqa: A003 (the parameter engine.set, as --set)
+        '', 'Engine settings over the profile, as space-separated key=value '
+        "pairs (dotted keys, YAML values), e.g. 'geometry_interval=1 "
+        "device=cuda'.")
+    config: str = parameter('', 'Engine settings file (config/engine.yaml layout, any subset of '
+                            'its keys) applied between the profile and engine.set; empty: none.')
     checkpoint: str = parameter('', 'Whole-model checkpoint directory; empty: the engine '
-                                "config's (bundled) model.")
-    device: str = parameter('cpu', 'Torch device: cpu, cuda or cuda:N.')
-    mode: str = parameter('per_frame', 'per_frame: lowest latency; windowed: throughput.',
-                          choices=MODES)
-    keyframe_interval: int = parameter(1, 'After the anchors, every n-th frame enters the '
-                                       'streaming memory.', 1, _BIG_INT)
-    geometry_interval: int = parameter(
-        3, 'per_frame, moving camera, hands from mediapipe: the geometry branch runs on every '
-        'n-th frame (and where the camera tracker needs depth); the frames between are tracked '
-        'from the image alone with the last intrinsics (1: every frame, the reference path).',
-        1, _BIG_INT)
-    geometry_lag: int = parameter(
-        2, 'A frame answered before its geometry branch (geometry_interval > 1, no BA): n >= 1: '
-        'the camera tracker takes its outputs n frames later, so the branch runs in the '
-        'background and the next n frames do not wait for it (lower latency, slightly less '
-        'exact tracking); 0: before the next frame. Below geometry_interval.', 0, _BIG_INT)
+                                "settings' (bundled) model.")
     bundle_adjustment: str = parameter(
         'none', 'Bundle adjustment: none (each pose measured by the per-frame camera tracker '
         "only; the best published poses on our test data); in_process (the engine's background "
@@ -68,8 +60,7 @@ class EngineSelection:
 
     def __post_init__(self) -> None:
         check_parameters(self, 'engine.')
-        require_at_least('engine', 1, keyframe_interval=self.keyframe_interval,
-                         geometry_interval=self.geometry_interval)
+        split_overrides(self.set, 'engine.set')
 
 
 @dataclass(frozen=True)
@@ -128,11 +119,11 @@ class FallbackIntrinsics:
 
 @dataclass(frozen=True)
 class CameraSettings:
-    """Camera motion and intrinsics (parameters ``camera.*``)."""
+    """The camera's stamps and intrinsics (parameters ``camera.*``).
 
-    motion: str = parameter('estimate', 'estimate: a moving camera; static: a fixed camera '
-                            '(tripod, robot-mounted), its pose held at identity.',
-                            choices=CAMERA_MOTIONS)
+    Its motion is the engine's ``camera_motion`` (profile ``teleop``: a fixed camera).
+    """
+
     info_tolerance_s: float = parameter(0.05, 'A CameraInfo pairs with an image whose stamp is '
                                         'at most this far from its own, s.', 0.0, 3600.0)
     info_wait_s: float = parameter(0.2, 'Once CameraInfos arrive, an image waits at most this '
@@ -184,7 +175,7 @@ class TFSettings:
                               'world -> camera frame and world -> the wrist frame of each hand '
                               'published.')
     camera: bool = parameter(True, 'Include world -> camera frame (the camera pose; with '
-                             'camera.motion static once on /tf_static); false when another '
+                             'engine profile teleop once on /tf_static); false when another '
                              'node gives the camera frame its parent (a URDF): a TF frame has '
                              'one parent.')
 
@@ -223,7 +214,7 @@ class EstimatorConfig:
     camera: CameraSettings = nested(CameraSettings)
     outputs: OutputSwitches = nested(OutputSwitches)
     tf: TFSettings = nested(TFSettings)
-    hands: HandsConfig = nested(lambda: HandsConfig(source=MEDIAPIPE))
+    hands: HandsConfig = nested(HandsConfig)
     smoothing: SmoothingConfig = nested(SmoothingConfig)
     identity: IdentityConfig = nested(IdentityConfig)
     shape: ShapeConfig = nested(ShapeConfig)

@@ -1,63 +1,93 @@
-"""The node's engine configuration: the engine YAML with the node's parameters applied.
+"""The node's engine settings: its profile, settings file and parameters resolved into one.
 
-The YAML is ``config/engine.yaml`` unless ``engine.config`` names another. The ``engine.*``
-parameters select the mode, the keyframe and geometry intervals, device, checkpoint and BA;
-``camera.motion`` is the engine's ``camera_motion``, ``hands.*`` its hand source (they replace
-the file's ``hands`` section) and ``identity.*``, ``shape.*`` and ``smoothing.*`` its output
-stage (they replace the file's ``output`` section). Errors name the parameter.
+``engine.profile`` names the profile (``live`` by default), ``engine.config`` a settings file
+over it, and ``engine.set`` overrides applied last. Between the file and ``engine.set`` come the
+node's own: ``engine.checkpoint``, ``engine.bundle_adjustment`` and the engine sections the node
+declares as parameters (``hands.*``, ``identity.*``, ``shape.*``, ``smoothing.*``), each where it
+differs from the engine's default, so a parameter left alone keeps the profile's value. Errors
+name the parameter.
 """
 
-from dataclasses import replace
 from pathlib import Path
-from typing import Final
+from typing import Any, Final
 
-from infinihand_ros.ba.config import load_ba_config
+from infinihand_ros.core.config import config_to_dict
 from infinihand_ros.core.errors import ConfigError
-from infinihand_ros.engine.config import check_device
 from infinihand_ros.engine.config import EngineConfig
-from infinihand_ros.engine.config import load_engine_config
-from infinihand_ros.engine.output.config import OutputConfig
+from infinihand_ros.engine.settings import build_engine_config
+from infinihand_ros.engine.settings import checkpoint_overrides
+from infinihand_ros.engine.settings import split_overrides
 from infinihand_ros.ros.estimator.config import EstimatorConfig
 
 #: ``ba.worker.when_behind`` of the node's in-process BA: never wait for room in the queue.
 LIVE_WHEN_BEHIND: Final = 'drop'
+#: Node parameter sections that are engine sections: parameter prefix -> engine key.
+ENGINE_SECTIONS: Final = {'hands': 'hands', 'identity': 'output.identity',
+                          'shape': 'output.shape', 'smoothing': 'output.smoothing'}
+
+
+def node_overrides(config: EstimatorConfig) -> dict[str, Any]:
+    """Return the engine settings the node's parameters set (``engine.set`` excluded).
+
+    ``bundle_adjustment: in_process`` keeps the settings file's BA, else the package's
+    ``config/ba.yaml``, with ``worker.when_behind: drop`` whatever they say: a live node never
+    waits for BA (a selection that finds the queue full replaces the oldest waiting one).
+    ``none`` and ``node`` (BA in the bundle_adjustment node, through the engine's ``RemoteBA``
+    backend that the node passes to the engine) run no BA worker in the engine.
+
+    Raises:
+        ConfigError: naming ``engine.checkpoint`` when it is not a directory.
+
+    """
+    selection = config.engine
+    overrides: dict[str, Any] = {}
+    if selection.checkpoint:
+        checkpoint = Path(selection.checkpoint).expanduser()
+        if not checkpoint.is_dir():
+            raise ConfigError(f'engine.checkpoint: {selection.checkpoint!r} is not a checkpoint '
+                              "directory; give one or '' for the engine settings' model")
+        overrides.update(checkpoint_overrides(str(checkpoint)))
+    defaults = EngineConfig()
+    for prefix, key in ENGINE_SECTIONS.items():
+        given = config_to_dict(getattr(config, prefix))
+        default = config_to_dict(_section(defaults, key))
+        overrides.update({f'{key}.{name}': value for name, value in given.items()
+                          if value != default[name]})
+    return overrides
 
 
 def engine_config_for(config: EstimatorConfig) -> EngineConfig:
-    """Return the engine config the node's parameters describe.
-
-    ``bundle_adjustment: in_process`` (the default) keeps the engine file's BA settings, or uses
-    the package's ``config/ba.yaml`` when that file has none, with ``worker.when_behind: drop``
-    whatever the file says: a live node never waits for BA (a selection that finds the queue
-    full replaces the oldest waiting one). ``none`` and ``node`` (BA in the bundle_adjustment
-    node, through the engine's ``RemoteBA`` backend that the node passes to the engine) run no
-    BA worker in the engine.
+    """Return the engine settings the node's parameters describe.
 
     Raises:
         ConfigError: naming the parameter (``engine.config``, ``engine.checkpoint``,
-            ``engine.device``) or the engine file's key.
+            ``engine.set``) or the settings file's key.
 
     """
     selection = config.engine
     if selection.config and not Path(selection.config).expanduser().is_file():
         raise ConfigError(f'engine.config: {selection.config!r} is not a file; give an engine '
-                          "YAML or '' for the package's config/engine.yaml")
-    base = load_engine_config(Path(selection.config).expanduser() if selection.config else None)
-    model = base.model
-    if selection.checkpoint:
-        if not Path(selection.checkpoint).expanduser().is_dir():
-            raise ConfigError(f'engine.checkpoint: {selection.checkpoint!r} is not a checkpoint '
-                              "directory; give one or '' for the engine config's model")
-        model = replace(model, checkpoint=str(Path(selection.checkpoint).expanduser()),
-                        geometry_weights=None, crop_encoder_weights=None)
-    check_device(selection.device, 'engine.device')
-    ba = None
+                          "settings YAML or '' for none")
+    base = build_engine_config(selection.profile, {},
+                               Path(selection.config).expanduser() if selection.config else None)
+    overrides = node_overrides(config)
     if selection.bundle_adjustment == 'in_process':
-        ba = base.bundle_adjustment or load_ba_config()
-        ba = replace(ba, worker=replace(ba.worker, when_behind=LIVE_WHEN_BEHIND))
-    output = OutputConfig(config.identity, config.shape, config.smoothing)
-    return replace(base, mode=selection.mode, keyframe_interval=selection.keyframe_interval,
-                   geometry_interval=selection.geometry_interval,
-                   geometry_lag=selection.geometry_lag, device=selection.device,
-                   model=model, bundle_adjustment=ba,
-                   camera_motion=config.camera.motion, output=output, hands=config.hands)
+        if base.bundle_adjustment is None:
+            overrides['bundle_adjustment'] = True
+        overrides['bundle_adjustment.worker.when_behind'] = LIVE_WHEN_BEHIND
+    else:
+        overrides['bundle_adjustment'] = None
+    overrides.update(split_overrides(selection.set, 'engine.set'))
+    try:
+        return build_engine_config(
+            selection.profile, overrides,
+            Path(selection.config).expanduser() if selection.config else None)
+    except ConfigError as exc:
+        raise ConfigError(f'engine parameters: {exc}') from exc
+
+
+def _section(config: Any, key: str) -> Any:
+    """Return the nested section ``key`` (dotted) of a config."""
+    for part in key.split('.'):
+        config = getattr(config, part)
+    return config

@@ -131,9 +131,10 @@ class EstimatorNode(Node):
                                         daemon=True)
         self._worker.start()
         self.get_logger().info(
-            f'ready: engine {engine.config.mode} on {engine.config.device}, hand source '
-            f'{self.config.hands.source}, camera motion {self.config.camera.motion}, smoothing '
-            f'{self.config.smoothing.mode}, bundle adjustment '
+            f'ready: engine profile {self.config.engine.profile}, {engine.config.mode} on '
+            f'{engine.config.device}, hand source {engine.config.hands.source}, camera motion '
+            f'{engine.config.camera_motion}, geometry every {engine.config.geometry_interval} '
+            f'frames, smoothing {engine.config.output.smoothing.mode}, bundle adjustment '
             f'{self.config.engine.bundle_adjustment}')
 
     def close(self) -> None:
@@ -337,7 +338,10 @@ DESCRIPTION: Final = (
     'Hand source: mediapipe by default (MediaPipe Hands, trained on real photos, lifted to\n'
     'MANO), because this node runs on real camera images and the bundled InfiniHand weights\n'
     'have seen only synthetic images. -p hands.source:=infinihand runs the hand branch of\n'
-    'the paper (for trained checkpoints; hands.verify guards it with MediaPipe).')
+    'the paper (for trained checkpoints; hands.verify guards it with MediaPipe).\n\n'
+    'Engine settings: -p engine.profile:=live (the default: a moving camera), teleop (a\n'
+    "fixed camera), offline or synthetic; -p engine.set:='geometry_interval=1 device=cuda'\n"
+    'overrides single settings (config/engine.yaml lists them all).')
 
 
 def main(args: list[str] | None = None) -> int:

@@ -14,10 +14,10 @@ is, and published serialized (the bag typestore's definition is the generated ty
 ``/tf`` (``tf.*``), as ``tf2_ros.TransformBroadcaster`` publishes it (its topic and QoS): one
 ``tf2_msgs/TFMessage`` per frame holding world -> camera frame (the camera pose,
 camera-to-world) and world -> wrist frame of each hand with a wrist pose. With a fixed camera
-(``camera.motion: static``) world -> camera never changes: it goes once to ``/tf_static``
-(latched, as ``tf2_ros.StaticTransformBroadcaster`` sends it) instead. ``make`` builds
-``tf2_msgs`` and ``infinihand_msgs`` where no ROS 2 install provides them; an output whose type
-cannot be imported stops the node at start-up with a ``ConfigError`` saying so.
+(``camera_motion: static``, profile ``teleop``) world -> camera never changes: it goes once to
+``/tf_static`` (latched, as ``tf2_ros.StaticTransformBroadcaster`` sends it) instead. ``make``
+builds ``tf2_msgs`` and ``infinihand_msgs`` where no ROS 2 install provides them; an output whose
+type cannot be imported stops the node at start-up with a ``ConfigError`` saying so.
 """
 
 import importlib
@@ -131,8 +131,9 @@ class OutputPublishers:
             switches: which outputs to publish.
             frames: the world and wrist frame ids.
             tf: what to broadcast on /tf.
-            static_camera: the camera never moves (``camera.motion: static``): world ->
-                camera goes once to /tf_static instead of /tf with every frame.
+            static_camera: the camera never moves (``camera_motion: static``, profile
+                ``teleop``): world -> camera goes once to /tf_static instead of /tf with every
+                frame.
 
         Raises:
             ConfigError: when ``~/hands`` or /tf is asked for and its message package cannot
