@@ -67,12 +67,17 @@ def machine() -> str:
 
 
 def commit() -> str:
-    """Return the checkout's short commit, with ``-dirty`` when tracked files have changes."""
+    """Return the checkout's short commit, ``-dirty`` when tracked files other than pages differ.
+
+    Changed markdown pages (the README, docs, model cards) do not change a figure, so they do
+    not count; changed code, settings or data do.
+    """
     def git(*args: str) -> str:
         return subprocess.run(['git', *args], cwd=ROOT, capture_output=True, text=True,
                               check=False).stdout.strip()
     head = git('rev-parse', '--short', 'HEAD') or 'unknown'
-    return head + ('-dirty' if git('status', '--porcelain', '--untracked-files=no') else '')
+    changed = git('status', '--porcelain', '--untracked-files=no', '--', '.', ':(exclude)*.md')
+    return head + ('-dirty' if changed else '')
 
 
 def command_line() -> str:
