@@ -3,7 +3,8 @@
     python benchmarks/figures.py [--check]
 
 Each record (``benchmarks/records.py``, written by a benchmark's ``--record PATH``) gives rows:
-figure, value, command, machine, commit, date. The table sits between the README's two marker
+figure, value, command, machine (with the load average when the record was written), commit,
+date. The table sits between the README's two marker
 lines and is replaced whole; nothing in it is typed by hand. ``--check`` changes nothing and
 exits 1 when the committed table differs from what the records give.
 """
@@ -47,6 +48,11 @@ def _value(value: float, unit: str) -> str:
     return f'{text} {unit}'.strip()
 
 
+def _machine(record: dict) -> str:
+    load = record.get('load_average')
+    return record['machine'] if load is None else f"{record['machine']}, load {load:g}"
+
+
 def _cell(text: str) -> str:
     return text.replace('|', '\\|')
 
@@ -58,7 +64,7 @@ def table(records: list[dict]) -> str:
         for figure in record['figures']:
             rows.append('| ' + ' | '.join(_cell(cell) for cell in (
                 figure['name'], _value(figure['value'], figure['unit']),
-                f"`{record['command']}`", record['machine'], f"`{record['commit']}`",
+                f"`{record['command']}`", _machine(record), f"`{record['commit']}`",
                 record['date'])) + ' |')
     return '\n'.join(rows)
 

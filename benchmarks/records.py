@@ -5,10 +5,13 @@ A benchmark run with ``--record PATH`` writes a record::
     {"benchmark": "profile_engine",
      "command": "python benchmarks/profile_engine.py --frames 60 --record ...",
      "machine": "x86_64, Intel(R) Xeon(R) ..., 2 CPUs, Linux 6.8",
-     "commit": "f3e4320", "date": "2026-12-07",
+     "commit": "f3e4320", "date": "2026-12-07", "load_average": 2.1,
      "figures": [{"name": "per-frame engine", "value": 9.1, "unit": "frames/s"}, ...]}
 
-Records live in ``benchmarks/results/``; ``benchmarks/figures.py`` builds the table in
+``load_average`` is the machine's 1-minute load average when the record was written (the
+benchmark's own threads included): on a shared machine, a load above its CPU count means the
+figures were measured while other work competed for the CPUs. Records live in
+``benchmarks/results/``; ``benchmarks/figures.py`` builds the table in
 ``benchmarks/README.md`` from them, so no figure is typed by hand.
 """
 
@@ -26,7 +29,7 @@ import sys
 
 ROOT = Path(__file__).resolve().parents[1]
 RESULTS = ROOT / 'benchmarks' / 'results'
-RECORD_KEYS = ('benchmark', 'command', 'machine', 'commit', 'date', 'figures')
+RECORD_KEYS = ('benchmark', 'command', 'machine', 'commit', 'date', 'load_average', 'figures')
 
 
 @dataclass(frozen=True)
@@ -94,6 +97,7 @@ def record(benchmark: str, figures: list[Figure]) -> dict:
     """Return the record of this run's ``figures``."""
     return {'benchmark': benchmark, 'command': command_line(), 'machine': machine(),
             'commit': commit(), 'date': datetime.date.today().isoformat(),
+            'load_average': round(os.getloadavg()[0], 1),
             'figures': [asdict(figure) for figure in figures]}
 
 

@@ -94,12 +94,12 @@ def test_figures_table_has_one_row_per_figure() -> None:
     """A record with two figures gives two rows carrying its command, machine, commit, date."""
     figures = _benchmark_module('figures')
     record = {'benchmark': 'b', 'command': 'python benchmarks/b.py --x', 'machine': 'm, 2 CPUs',
-              'commit': 'abc1234', 'date': '2026-01-02',
+              'commit': 'abc1234', 'date': '2026-01-02', 'load_average': 3.5,
               'figures': [{'name': 'speed', 'value': 12.3456, 'unit': 'frames/s'},
                           {'name': 'error', 'value': 0.5, 'unit': ''}]}
     rows = figures.table([record]).splitlines()
-    assert rows[2] == ('| speed | 12.3 frames/s | `python benchmarks/b.py --x` | m, 2 CPUs | '
-                       '`abc1234` | 2026-01-02 |')
+    assert rows[2] == ('| speed | 12.3 frames/s | `python benchmarks/b.py --x` | '
+                       'm, 2 CPUs, load 3.5 | `abc1234` | 2026-01-02 |')
     assert rows[3].startswith('| error | 0.5 | ')
     assert len(rows) == 4
     with pytest.raises(ValueError, match='marker lines'):
@@ -107,7 +107,7 @@ def test_figures_table_has_one_row_per_figure() -> None:
 
 
 def test_record_names_how_the_figures_were_made(tmp_path: Path) -> None:
-    """A record carries the figures, command, machine, commit and date; NaN is refused."""
+    """A record carries the figures, command, machine, commit, date, load; NaN is refused."""
     records = _benchmark_module('records')
     path = tmp_path / 'results' / 'x.json'
     records.write_record(path, 'x', [records.Figure('speed', 2.5, 'frames/s')])
