@@ -2,10 +2,10 @@
 
 Every command the README and the ``docs/`` pages show (in code blocks and inline code) that
 starts with one of the package's console scripts, ``ros2 run infinihand_ros``,
-``python -m infinihand_ros.`` or ``python benchmarks/`` is run with ``--help`` in a fresh bash that only sourced the environment
-script, as a user would type it. Without ``ros2`` on PATH a ``ros2 run infinihand_ros X`` command
-is checked as the plain script ``X`` the README offers for that setup. The nodes' ``--help``
-also names their hand source and every parameter.
+``python -m infinihand_ros.`` or ``python benchmarks/`` is run with ``--help`` in a fresh bash
+that only sourced the environment script, as a user would type it. Without ``ros2`` on PATH a
+``ros2 run infinihand_ros X`` command is checked as the plain script ``X`` the README offers for
+that setup. The nodes' ``--help`` also names their hand source and every parameter.
 """
 
 import importlib.metadata
