@@ -25,6 +25,9 @@ from infinihand_ros.synth.photo_streams import hand_and_arm_patch
 from infinihand_ros.synth.photo_streams import pasted_stream
 from infinihand_ros.synth.photo_streams import wandering_corners
 import numpy as np
+from records import add_record_option
+from records import Figure
+from records import write_record
 from scipy.spatial.transform import Rotation
 
 STILLS = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real_hands_stills'
@@ -64,15 +67,27 @@ def run(frames: list, with_ba: bool) -> dict[str, dict[str, float]]:
             'final': drift([r.camera_pose for r in final])}
 
 
+def record_figures(report: dict, frames: int) -> list[Figure]:
+    """Return the written (final) trajectory's worst drift, BA on and off, as record figures."""
+    figures = []
+    for name, rows in report.items():
+        label = f'still webcam, {frames} frames, {name}: worst drift of the written trajectory'
+        figures += [Figure(label, 1e3 * rows['final']['max_m'], 'mm'),
+                    Figure(label, rows['final']['max_deg'], 'deg')]
+    return figures
+
+
 def main() -> None:
     """Print the drift of each trajectory, BA on and off."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--stills', type=Path, default=STILLS)
     parser.add_argument('--frames', type=int, default=200)
     parser.add_argument('--json', action='store_true')
+    add_record_option(parser)
     args = parser.parse_args()
     frames = still_webcam(list(read_camera_frames(args.stills)), args.frames)
     report = {'BA on (default)': run(frames, True), 'BA off': run(frames, False)}
+    write_record(args.record, 'ba_still_camera', record_figures(report, args.frames))
     if args.json:
         print(json.dumps(report))
         return

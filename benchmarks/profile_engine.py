@@ -58,6 +58,9 @@ from infinihand_ros.ros.estimator.config import TFSettings
 from infinihand_ros.ros.estimator.publishers import OutputPublishers
 import numpy as np
 from rclpy.serialization import serialize_message
+from records import add_record_option
+from records import Figure
+from records import write_record
 import torch
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -276,6 +279,7 @@ def main() -> None:
     parser.add_argument('--camera-motion', choices=CAMERA_MOTIONS, default=None,
                         help="engine.camera_motion (default: the config's)")
     parser.add_argument('--json', action='store_true', help='print one JSON line')
+    add_record_option(parser)
     args = parser.parse_args()
     if args.threads is not None:
         torch.set_num_threads(args.threads)
@@ -292,6 +296,11 @@ def main() -> None:
             figures[mode] = _profile(engine, frames, args.frames)
             figures[mode]['engine'] = {key: engine.statistics[key] for key in (
                 'frames_pushed', 'frames_with_depth', 'frames_without_geometry')}
+    setting = (f'hands {config.hands.source}, camera {config.camera_motion}, '
+               f'{torch.get_num_threads()} torch threads, sample bag')
+    write_record(args.record, 'profile_engine', [
+        Figure(f'engine {mode} ({setting})', values['fps'], 'frames/s')
+        for mode, values in figures.items()])
     if args.json:
         print(json.dumps(figures))
         return

@@ -27,6 +27,9 @@ from infinihand_ros.eval.reference_clip import load_reference_clip
 from infinihand_ros.eval.reference_clip import mediapipe_hands
 from infinihand_ros.eval.reference_clip import reference_scores
 import numpy as np
+from records import add_record_option
+from records import Figure
+from records import write_record
 
 REAL_EGO = Path(__file__).resolve().parents[2] / 'shared' / 'data' / 'real_ego'
 
@@ -52,6 +55,22 @@ def run(folder: Path, with_ba: bool) -> dict:
     return report
 
 
+def record_figures(reports: list[dict], with_ba: bool) -> list[Figure]:
+    """Return each clip's camera and hand scores as record figures."""
+    figures = []
+    for report in reports:
+        label = f"{report['clip']} (BA {'on' if with_ba else 'off'})"
+        figures += [
+            Figure(f'{label}: camera ATE, share of the SfM path',
+                   report['camera']['ate_pct'], '%'),
+            Figure(f'{label}: focal length error against SfM', report['focal_error_pct'], '%'),
+            Figure(f"{label}: MediaPipe's hands found on the same side",
+                   100.0 * report['hands']['found_same_side'], '%'),
+            Figure(f'{label}: reprojected joints, median (share of the hand box)',
+                   report['hands']['reprojection_median'], '')]
+    return figures
+
+
 def main() -> None:
     """Print one row per clip."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -60,10 +79,12 @@ def main() -> None:
                         if REAL_EGO.is_dir() else [])
     parser.add_argument('--no-ba', action='store_true', help='bundle adjustment off')
     parser.add_argument('--json', action='store_true')
+    add_record_option(parser)
     args = parser.parse_args()
     if not args.clips:
         raise SystemExit(f'no clips: {REAL_EGO} is absent; pass --clips')
     reports = [run(folder, not args.no_ba) for folder in args.clips]
+    write_record(args.record, 'real_ego', record_figures(reports, not args.no_ba))
     if args.json:
         print(json.dumps(reports))
         return

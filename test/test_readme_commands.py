@@ -1,11 +1,11 @@
 """The README's commands work as typed after ``source scripts/env.sh`` (no ROS install needed).
 
-Every command the README shows (in code blocks and inline code) that starts with one of the
-package's console scripts, ``ros2 run infinihand_ros``, ``python -m infinihand_ros.`` or
-``python benchmarks/`` is run with ``--help`` in a fresh bash that only sourced the environment
-script, as a user would type it. Without ``ros2`` on PATH a ``ros2 run infinihand_ros X`` command
-is checked as the plain script ``X`` the README offers for that setup. The nodes' ``--help``
-also names their hand source and every parameter.
+Every command the README and the ``docs/`` pages show (in code blocks and inline code) that
+starts with one of the package's console scripts, ``ros2 run infinihand_ros``,
+``python -m infinihand_ros.`` or ``python benchmarks/`` is run with ``--help`` in a fresh bash
+that only sourced the environment script, as a user would type it. Without ``ros2`` on PATH a
+``ros2 run infinihand_ros X`` command is checked as the plain script ``X`` the README offers for
+that setup. The nodes' ``--help`` also names their hand source and every parameter.
 """
 
 import importlib.metadata
@@ -19,6 +19,8 @@ import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / 'README.md'
+#: The pages whose commands are checked: the README and the reference pages it points to.
+PAGES = [README, *sorted((ROOT / 'docs').glob('*.md'))]
 PACKAGE = 'infinihand_ros'
 ROS2_RUN = f'ros2 run {PACKAGE} '
 _CODE = re.compile(r'```bash\n(.*?)```|`([^`\n][^`]*)`', re.DOTALL)
@@ -71,7 +73,8 @@ def _fresh_bash(line: str) -> subprocess.CompletedProcess:
 
 
 def _commands() -> list[str]:
-    return sorted(readme_commands(README.read_text(encoding='utf-8'), console_scripts()))
+    return sorted(set().union(*(readme_commands(page.read_text(encoding='utf-8'),
+                                                console_scripts()) for page in PAGES)))
 
 
 def test_readme_commands_are_found() -> None:
