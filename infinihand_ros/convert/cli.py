@@ -28,12 +28,15 @@ from infinihand_ros.convert.report import EpisodeReport
 from infinihand_ros.convert.report import FAILED
 from infinihand_ros.convert.report import summary_table
 from infinihand_ros.convert.run import ConversionRun
+from infinihand_ros.convert.run import engine_config_for
 from infinihand_ros.convert.run import resolve_video_size
 from infinihand_ros.convert.run import RunOptions
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.engine.settings import add_settings_arguments
+from infinihand_ros.engine.settings import save_engine_settings
+from infinihand_ros.engine.settings import SETTINGS_FILE
 from tqdm import tqdm
 
 EXIT_OK: Final = 0
@@ -177,7 +180,10 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     try:
         config, options = validate_args(args)
+        engine_settings = engine_config_for(config)  # a bad --set is refused before any work
         writer = DatasetWriter(options.output, config)
+        save_engine_settings(engine_settings, options.output / SETTINGS_FILE,
+                             config.engine.profile, config.engine.overrides)
     except (UsageError, InfiniHandError) as exc:
         print(f'bag_to_dataset: error: {exc}', file=sys.stderr)
         return EXIT_USAGE

@@ -33,6 +33,8 @@ from infinihand_ros.convert.lerobot_features import CAMERA_POSE
 from infinihand_ros.convert.lerobot_features import FRAME_FEATURES
 from infinihand_ros.convert.video_writer import EpisodeVideoWriter
 from infinihand_ros.core.datatypes import CameraPose
+from infinihand_ros.engine.settings import build_engine_config
+from infinihand_ros.engine.settings import load_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 import numpy as np
 import pyarrow.parquet as pq
@@ -274,12 +276,17 @@ def test_usage_errors(tmp_path: Path) -> None:
 
 @pytest.mark.slow
 def test_time_windows_with_bundle_adjustment(synth_bags: list[Path], tmp_path: Path) -> None:
-    """--episode-seconds splits a bag into episodes; BA runs and reports its statistics."""
+    """--episode-seconds splits a bag into episodes; BA runs and reports its statistics.
+
+    The dataset keeps the engine settings it was made with (the offline profile, --set last).
+    """
     output = tmp_path / 'dataset'
     config = fast_config(tmp_path / 'ba.yaml', engine={})
     rc = main([str(synth_bags[0]), '--output', str(output), '--config', str(config), '--quiet',
-               '--episode-seconds', '0.3'])
+               '--episode-seconds', '0.3', '--set', 'hands.min_confidence=0.6'])
     assert rc == EXIT_OK
+    assert load_engine_config(output / 'engine_settings.yaml') == build_engine_config(
+        'offline', ['hands.min_confidence=0.6'])
     reports = _report(output)
     assert [Path(r['source']).name for r in reports] == ['bag#0', 'bag#1']
     assert all(r['bundle_adjustment'] is not None for r in reports)
