@@ -1,121 +1,88 @@
 """The one streaming engine: push frames, get per-frame camera poses and world-space hands.
 
 Data flows one way. Each push is prepare, route, run, finish. The frame's stamp goes through the
-stream policy (``engine/stream_policy.py``: a stamp out of order is refused, one far back starts
-a new stream) and the frame is checked and fitted to the model (``frame_input``); the schedule
+stream policy (``engine/stream_policy.py``: one out of order is refused, one far back starts a
+new stream), the frame is checked and fitted to the model (``frame_input``), the schedule
 (``engine/schedule.py``) picks its route, and the paper's camera-space pass
-(``InfiniHandModel``: geometry through the streaming memory, poses, boxes from masks, hand
-branch) runs per block. Frame by frame, in order, the camera-space record then goes to the pose
-track (its per-frame tracker measures the pose in the image, with the network's pose as prior;
-metric scale from the hands; BA corrections), to the bundle-adjustment backend (keyframes;
-``engine/ba_backend.py``), its hands are placed in the world once (``engine/world_placement.py``),
-with the track's best pose (the identity with ``camera_motion: static``), and the output stage
-(``engine/output/``: identity, shared shape, smoothing) gives the result every consumer gets. The
-depth head runs only on the frames whose depth is used (a new tracker reference, a metric-scale
-sample, a keyframe for BA; every keyframe with ``depth_maps``). A fixed camera whose hands come
-from outside the model (``camera_motion: static`` with MediaPipe) skips the geometry branch
-wherever the intrinsics are known (given, or fixed from the first frames' predictions): the hand
-source is all such a frame needs. A moving camera with such a hand source runs the geometry
-branch on every ``geometry_interval``-th frame in per-frame mode (and wherever the tracker needs
-depth); every other frame is tracked from the image alone, with the last intrinsics, and carries
-no depth. Without BA a frame due for the geometry branch while the tracker holds the camera can
-go out before its geometry branch runs (``engine/deferred_geometry.py``, ``catch_up``). A hand
-source that reads images (MediaPipe) does so in its own thread, in push order, while the model
-runs on the frame. For a fixed camera a live caller can start it earlier, when the image arrives
-(``detect_ahead``): the hands of the next frame are then read while the last one is still being
-finished and published.
-
-The first ``anchor_frames`` frames are held back and processed together (the paper's anchor
-context), in both modes. After that, per-frame mode runs each frame as it arrives; windowed mode
-collects ``window`` frames, runs the geometry branch on them in one call and the hand branch in
-a worker thread, so the geometry of the next window overlaps the hands of this one (paper Sec.
-4.4). At most one window is in the worker: the next one waits for it (bounded memory). Attention
-inside a window is causal, so both modes give the same per-frame results.
+(``engine/camera_space_pass.py``: geometry through the streaming memory, poses, boxes from masks,
+hand branch) runs on it in blocks: the anchors together, then per frame or per window. Frame by
+frame, in order, each camera-space record then goes to the pose track (its per-frame tracker
+measures the pose in the image, with the network's pose as prior; metric scale from the hands;
+BA corrections), to the bundle-adjustment backend (keyframes; ``engine/ba_backend.py``), its
+hands are placed in the world once (``engine/world_placement.py``) with the track's best pose
+(the identity with ``camera_motion: static``), and the output stage (``engine/output/``:
+identity, shared shape, smoothing) gives the result every consumer gets. The depth head runs
+only on the frames whose depth is used (a new tracker reference, a metric-scale sample, a
+keyframe for BA; every keyframe with ``depth_maps``). A fixed camera whose hands come from
+outside the model (``camera_motion: static`` with MediaPipe) skips the geometry branch wherever
+the intrinsics are known (given, or held from the first frames' predictions:
+``engine/stream_lens.py``). A moving camera with such a hand source runs the geometry branch on
+every ``geometry_interval``-th frame in per-frame mode (and wherever the tracker needs depth);
+every other frame is tracked from the image alone, with the last intrinsics. Without BA a frame
+due for the geometry branch while the tracker holds the camera can go out before its geometry
+branch runs (``engine/deferred_geometry.py``, ``catch_up``). A hand source that reads images
+(MediaPipe) does so in its own thread, in push order, while the model runs on the frame
+(``engine/hands/reader.py``); for a fixed camera a live caller can start it when the image
+arrives (``detect_ahead``).
 
 Threading contract: one caller at a time. ``push``, ``flush``, ``reset``, ``catch_up`` and
 ``close`` raise ``EngineStateError`` when called while another thread is inside one of them, and
 after ``close()``; nothing is consumed then. ``detect_ahead`` and ``stamp_step`` alone may be
-called from another thread (an image callback) while they run. ``stage_timer``, when set, is
-called with each timed stage (``STAGES``) and its seconds, from the thread that ran it.
+called from another thread (an image callback) while they run.
 """
 
-from collections import deque
-from collections.abc import Callable
 from collections.abc import Iterator
 from collections.abc import Sequence
-from concurrent.futures import Future
-from concurrent.futures import ThreadPoolExecutor
 import contextlib
 import dataclasses
 import threading
-import time
-from typing import Final
 
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import FrameResult
-from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import EngineStateError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.engine.ba_backend import BABackend
-from infinihand_ros.engine.ba_backend import keyframe_input
+from infinihand_ros.engine.ba_backend import KeyframeFeed
 from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.camera_space import CameraSpaceFrame
-from infinihand_ros.engine.camera_space import depth_ratios
 from infinihand_ros.engine.camera_space import PreparedFrame
-from infinihand_ros.engine.camera_space import split_frames
-from infinihand_ros.engine.camera_space import split_geometry
-from infinihand_ros.engine.camera_space import tracking_view
 from infinihand_ros.engine.camera_space import with_hand_boxes
+from infinihand_ros.engine.camera_space_pass import CameraSpacePass
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.deferred_geometry import DeferredGeometry
 from infinihand_ros.engine.frame_input import check_image
 from infinihand_ros.engine.frame_input import check_intrinsics
-from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.hands.reader import HandReader
 from infinihand_ros.engine.hands.source import build_hand_source
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.model_builder import InfiniHandModel
 from infinihand_ros.engine.output.stage import OutputStage
 from infinihand_ros.engine.pose_track import PoseTrack
+from infinihand_ros.engine.scale_sampling import scale_correction
+from infinihand_ros.engine.scale_sampling import scale_samples
 from infinihand_ros.engine.schedule import FrameSituation
 from infinihand_ros.engine.schedule import Route
 from infinihand_ros.engine.schedule import route
-from infinihand_ros.engine.stream_lens import given_intrinsics
+from infinihand_ros.engine.stage_timing import STAGE_DETECTION
+from infinihand_ros.engine.stage_timing import STAGE_FINISH
+from infinihand_ros.engine.stage_timing import STAGE_OUTPUT
+from infinihand_ros.engine.stage_timing import STAGE_PLACEMENT
+from infinihand_ros.engine.stage_timing import STAGE_PREPARE
+from infinihand_ros.engine.stage_timing import STAGE_TRACK
+from infinihand_ros.engine.stage_timing import StageTimer
+from infinihand_ros.engine.stage_timing import timed
 from infinihand_ros.engine.stream_lens import StreamLens
 from infinihand_ros.engine.stream_policy import StreamPolicy
 from infinihand_ros.engine.timestamps import check_timestamp
 from infinihand_ros.engine.timestamps import StampStep
 from infinihand_ros.engine.world_placement import WorldPlacement
-from infinihand_ros.model.geometry_model import cpu_bf16_supported
-from infinihand_ros.model.geometry_model import GeometryOutput
 from infinihand_ros.model.geometry_stream import GeometryStream
-from infinihand_ros.model.infinihand_model import CameraSpaceOutput
-from infinihand_ros.model.io.bundled import hand_depth_correction
-from infinihand_ros.model.io.bundled import resolve_checkpoint
 import numpy as np
-import torch
-
-#: The stages ``stage_timer`` is told of (a child after its parent's name and '/'): checking
-#: and fitting a frame; the hand source reading an image (in its own thread, beside the model);
-#: a block's hands (the hand branch where it is used, the split into per-frame records, the
-#: hand source's lifting and gating); finishing a frame (pose track, world placement, output
-#: stage). The model's own parts are timed on ``StreamingEngine.model``.
-STAGE_PREPARE: Final = 'prepare'
-STAGE_DETECTION: Final = 'hand detection'
-STAGE_HANDS: Final = 'hands'
-STAGE_SPLIT: Final = 'hands/split into frames'
-STAGE_LIFT: Final = 'hands/hand source'
-STAGE_FINISH: Final = 'finish'
-STAGE_TRACK: Final = 'finish/pose track'
-STAGE_PLACEMENT: Final = 'finish/world placement'
-STAGE_OUTPUT: Final = 'finish/output stage'
-STAGES: Final = (STAGE_PREPARE, STAGE_DETECTION, STAGE_HANDS, STAGE_SPLIT, STAGE_LIFT,
-                 STAGE_FINISH, STAGE_TRACK, STAGE_PLACEMENT, STAGE_OUTPUT)
 
 
 class StreamingEngine:
@@ -123,7 +90,7 @@ class StreamingEngine:
 
     Attributes:
         stage_timer: None, or called with (stage name, seconds) after each timed stage
-            (``STAGES``), from the thread that ran it; for profiling.
+            (``engine/stage_timing.py``), from the thread that ran it; for profiling.
 
     """
 
@@ -150,8 +117,9 @@ class StreamingEngine:
             raise ConfigError('engine.camera_motion: static takes no bundle-adjustment backend '
                               '(a fixed camera is the world frame)')
         self.model = model or build_model(self.config)
-        self.stage_timer: Callable[[str, float], None] | None = None
-        self._scale_correction = _scale_correction(self.config)
+        self.stage_timer: StageTimer | None = None
+        self._scale_correction = scale_correction(self.config.metric_scale,
+                                                  self.config.model.checkpoint)
         self._output = OutputStage(self.config.output, self.model.hand_branch.hand_models)
         self._hand_source = build_hand_source(self.config.hands,
                                               self.model.hand_branch.hand_models)
@@ -161,44 +129,30 @@ class StreamingEngine:
         self._ba = ba_backend
         self._placement = WorldPlacement(self.static, raw_poses=ba_backend is not None)
         pool = (self.config.bundle_adjustment or BAConfig()).pool
-        self._ba_interval_ns = round(1e9 * pool.min_interval_s)
-        self._ba_last_ns: int | None = None  # stamp of the last keyframe offered to BA
-        self._anchor_frames = self.model.geometry.config.memory.anchor_frames
-        detection = self.config.detection
-        self._detection = self.model.hand_detection(detection.presence_threshold,
-                                                    detection.fov_range_deg,
-                                                    detection.peak_region,
-                                                    detection.region_join_px)
-        self._device = next(self.model.parameters()).device
-        self._cpu_bf16 = (self.config.cpu_precision == 'auto' and self._device.type == 'cpu'
-                          and cpu_bf16_supported())
-        self._decoder = (ThreadPoolExecutor(max_workers=1, thread_name_prefix='hand_decode')
-                         if self.config.mode == 'windowed' else None)
+        self._feed = None if ba_backend is None else KeyframeFeed(ba_backend, pool.min_interval_s)
         # The hand source reads each image in its own thread, beside the model (in order).
         self._reader = (HandReader(self._hand_source, lambda: self._stage(STAGE_DETECTION))
                         if self._hand_source.needs_image else None)
-        # The geometry branch of a frame answered first (catch_up, or the next call).
-        geometry = self.model.geometry
-        self._deferred = DeferredGeometry(
-            self._geometry_only, lambda: (*geometry.aggregator.frame_blocks,
-                                          *geometry.aggregator.global_blocks,
-                                          geometry.depth_head), self.config.geometry_lag)
         self._policy = StreamPolicy(self.config.restart_after_s)
         self._lens = StreamLens(self.config.lens_frames, self.static,
                                 self._hand_source.uses_hand_branch)
+        self._pass = CameraSpacePass(self.model, self.config, self._hand_source, self._reader,
+                                     self._lens, self._stage)
+        # The geometry branch of a frame answered first (catch_up, or the next call).
+        geometry = self.model.geometry
+        self._deferred = DeferredGeometry(
+            self._pass.geometry_only,
+            lambda: (*geometry.aggregator.frame_blocks, *geometry.aggregator.global_blocks,
+                     geometry.depth_head), self.config.geometry_lag)
         self._guard = threading.Lock()
         self._closed = False
         self._start_sequence()
 
     def _start_sequence(self) -> None:
         """Reset every per-sequence state (memories, counters, track, BA)."""
-        self._stream = self.model.new_stream()
-        self._pending: list[PreparedFrame] = []
-        self._decoding: deque[Future] = deque()
         self._frames_pushed = 0
         self._policy.accept(None)
         self._accepted_stamp: int | None = None  # last stamp of a block the model accepted
-        self._source_size: tuple[int, int] | None = None  # (width, height) of the stream
         self._lens.reset()
         self._counts = {'frames_with_depth': 0, 'frames_without_geometry': 0,
                         'geometry_failures': 0}
@@ -224,7 +178,7 @@ class StreamingEngine:
         """
         estimate = self.pose_track.scale_estimate()
         return {'frames_pushed': self._frames_pushed, **self._counts,
-                'windows_in_flight': sum(not future.done() for future in self._decoding),
+                'windows_in_flight': self._pass.windows_in_flight,
                 'metric_scale': self.pose_track.scale,
                 'metric_scale_estimate': estimate.scale,
                 'metric_scale_uncertainty': estimate.uncertainty,
@@ -240,7 +194,12 @@ class StreamingEngine:
     @property
     def model_stream(self) -> GeometryStream:
         """Return the model's streaming state (memories) of the current stream, to inspect."""
-        return self._stream
+        return self._pass.stream
+
+    @property
+    def last_accepted_ns(self) -> int | None:
+        """Return the stamp of the stream's last accepted frame, None before its first."""
+        return self._policy.last_ns
 
     def stamp_step(self, timestamp_ns: int) -> StampStep:
         """Return how ``push`` takes a frame stamped ``timestamp_ns`` now; changes nothing.
@@ -278,10 +237,11 @@ class StreamingEngine:
         """
         with self._exclusive():
             frame = self._prepare(image, timestamp_ns, intrinsics)
-            self._settle_owed(frame)
+            self._settle_owed(frame)  # the owed geometry where due (the gate still open)
             with self._deferred.holding():
-                self._run(self._route(frame), frame, image)
-                return self._collect(wait=False)
+                way = self._route(frame)
+                self._run(way, frame, image)
+                return self._finish_ready(wait=False)
 
     @property
     def detects_ahead(self) -> bool:
@@ -341,9 +301,9 @@ class StreamingEngine:
         """
         with self._exclusive():
             self._pay_geometry()
-            if self._pending:
+            if self._pass.pending:
                 self._run_block()
-            return self._collect(wait=True)
+            return self._finish_ready(wait=True)
 
     def refined(self, results: Sequence[FrameResult],
                 timeout_s: float | None = None) -> list[FrameResult]:
@@ -418,8 +378,7 @@ class StreamingEngine:
                 return
             self._closed = True
             self._drain()
-            if self._decoder is not None:
-                self._decoder.shutdown(wait=True)
+            self._pass.close()
             if self._reader is not None:
                 self._reader.close()
             self._deferred.close()
@@ -450,15 +409,15 @@ class StreamingEngine:
 
     def _stage(self, name: str) -> contextlib.AbstractContextManager[None]:
         """Return a context that tells ``stage_timer`` (if set) how long its body took."""
-        timer = self.stage_timer
-        return contextlib.nullcontext() if timer is None else _timed(timer, name)
+        return timed(self.stage_timer, name)
 
     def _restart(self) -> None:
         """Start a new sequence (``reset``, from inside a call)."""
         self._drain()
+        self._pass.reset()
         if self._ba is not None:
             self._ba.reset()
-            self._ba_last_ns = None
+            self._feed.reset()
         if self._reader is None:
             self._hand_source.reset()
         else:  # in its thread: a detection started ahead meanwhile may be running there
@@ -478,49 +437,10 @@ class StreamingEngine:
         if self._policy.admit(stamp) is StampStep.RESTART:
             self._restart()
         with self._stage(STAGE_PREPARE):
-            frame = self._fitted(image, stamp, intrinsics)
+            frame = self._pass.prepare(image, stamp, intrinsics, self._frames_pushed)
         self._frames_pushed += 1
         self._policy.accept(frame.timestamp_ns)
         return frame
-
-    def _fitted(self, image: np.ndarray, timestamp_ns: int,
-                intrinsics: Intrinsics | None) -> PreparedFrame:
-        """Check a frame and fit it to the model size (raises before any state changes).
-
-        A frame that goes on without the geometry branch (``_skips_geometry``) is not fitted:
-        its ``pixels`` and ``mapping`` are None.
-        """
-        stamp = check_timestamp(timestamp_ns, self._policy.last_ns)
-        image = check_image(image)
-        intrinsics = check_intrinsics(intrinsics, image) or self._lens.fixed
-        size = (image.shape[1], image.shape[0])
-        if self._source_size not in (None, size):
-            raise InputError(f"image: {size[0]}x{size[1]} px, but this stream's frames are "
-                             f'{self._source_size[0]}x{self._source_size[1]} px; keep one image '
-                             'size per stream (resize the frames) or reset() between streams')
-        pixels = mapping = None
-        if not self._skips_geometry(intrinsics):
-            geometry = self.model.geometry.config
-            fitted, mapping = fit_image(image, geometry.preprocessing, geometry.aggregator)
-            pixels = torch.from_numpy(fitted).to(self._device).permute(2, 0, 1).float() / 255.0
-        self._source_size = size
-        index = self._frames_pushed
-        after_anchors = index - self._anchor_frames
-        keyframe = after_anchors < 0 or after_anchors % self.config.keyframe_interval == 0
-        detections = (None if self._reader is None
-                      else self._reader.read(image, stamp, index))
-        return PreparedFrame(index, stamp, pixels, mapping, intrinsics, keyframe, None,
-                             detections)
-
-    def _skips_geometry(self, intrinsics: Intrinsics | None) -> bool:
-        """Return whether a frame with these given intrinsics goes on without the model.
-
-        A fixed camera whose hands come from outside the model needs the geometry branch only
-        for intrinsics: not when they are given, or once the first frames' predictions fixed
-        them (``lens_frames``). Frames never overtake held-back ones.
-        """
-        return (self.static and not self._hand_source.uses_hand_branch and not self._pending
-                and intrinsics is not None)
 
     def _settle_owed(self, frame: PreparedFrame) -> None:
         """Take in the owed geometry before ``frame`` where it is due (the gate still open)."""
@@ -538,8 +458,8 @@ class StreamingEngine:
         situation = FrameSituation(
             fitted=frame.pixels is not None, per_frame=self.config.mode == 'per_frame',
             geometry_interval=self.config.geometry_interval, tracking=self._tracking,
-            hand_branch=self._hand_source.uses_hand_branch, held_back=bool(self._pending),
-            in_anchors=frame.index < self._anchor_frames, frames_since_geometry=since,
+            hand_branch=self._hand_source.uses_hand_branch, held_back=bool(self._pass.pending),
+            in_anchors=frame.index < self._pass.anchor_frames, frames_since_geometry=since,
             owed=owed is not None, owed_failed=self._deferred.failed,
             tracker_needs_depth=tracker.needs_depth, tracker_lost=tracker.lost,
             scale_warmup=self.pose_track.scale_state == 'warmup',
@@ -551,49 +471,20 @@ class StreamingEngine:
         if way is Route.GEOMETRY:
             if self._ba is not None and frame.keyframe:  # BA reads the keyframe's image
                 frame = dataclasses.replace(frame, source_image=image.copy())
-            self._pending.append(frame)
-            if len(self._pending) >= self._block_size():
+            if self._pass.hold(frame):
                 self._run_block()
             return
         self._accepted_stamp = frame.timestamp_ns
         if way is Route.STATIC:  # no model input: the geometry branch is not needed
-            self._decoding.append(_done(self._without_geometry(frame)))
+            self._counts['frames_without_geometry'] += 1
+            self._pass.queue_static(frame)
             return
         if way is Route.TRACKED:  # enters no streaming memory
             frame = dataclasses.replace(frame, keyframe=False)
             self._counts['frames_without_geometry'] += 1
-        record = self._tracked_only(frame)
-        self._decoding.append(_done([record]))
+        record = self._pass.queue_tracked(frame, self._geometry_seen)
         if way is Route.TRACKED_FIRST:
             self._deferred.owe(record)
-
-    def _without_geometry(self, frame: PreparedFrame) -> list[CameraSpaceFrame]:
-        """Return a fixed camera's frame record with its source's hands, no model run."""
-        self._counts['frames_without_geometry'] += 1
-        with self._stage(STAGE_LIFT):
-            hands = self._hand_source.camera_hands(frame.found(), (), frame.intrinsics)
-        return [CameraSpaceFrame(frame, np.eye(4), frame.intrinsics, hands, None, None)]
-
-    def _tracked_only(self, frame: PreparedFrame) -> CameraSpaceFrame:
-        """Return a moving camera's frame record without the geometry branch: no network pose."""
-        _, intrinsics, model_intrinsics = self._geometry_seen
-        if frame.intrinsics is not None:
-            intrinsics = frame.intrinsics
-            model_intrinsics = frame.mapping.intrinsics_to_model(frame.intrinsics)
-        size = tuple(frame.pixels.shape[-2:])
-        view = tracking_view(frame, None, model_intrinsics.matrix(), size)
-        with self._stage(STAGE_LIFT):
-            hands = self._hand_source.camera_hands(frame.found(), (), intrinsics)
-        return CameraSpaceFrame(frame, None, intrinsics, hands, None, view)
-
-    def _geometry_only(self, frame: PreparedFrame) -> CameraSpaceFrame:
-        """Run the geometry branch alone on a frame answered first; return its record."""
-        intrinsics, known = given_intrinsics([frame])
-        with torch.inference_mode():
-            geometry, poses, used = self.model.run_geometry(
-                frame.pixels[None, None], self._stream, [frame.keyframe], intrinsics, known,
-                self._detection, self._cpu_bf16, masks=False, depth=False)
-        return split_geometry(geometry, poses, used, [frame], self.model.geometry)[0]
 
     def _pay_geometry(self) -> None:
         """Take in the geometry branch of the frame that went out before it (``tracked_first``).
@@ -619,81 +510,33 @@ class StreamingEngine:
                                      view=with_hand_boxes(record.view, frame, owed.record.hands))
         self.pose_track.absorb(frame.index, record.T_raw, record.view, owed.moment)
         self._geometry_seen = (frame.index, record.intrinsics, record.view.intrinsics)
-        self.pose_track.observe_scale(*self._scale_samples(record, True))
+        self.pose_track.observe_scale(*self._scale_samples_of(record, True))
         if record.depth.computed:
             self._counts['frames_with_depth'] += 1
 
-    def _block_size(self) -> int:
-        """Return how many frames the next block needs."""
-        first_pending = self._frames_pushed - len(self._pending)
-        if first_pending < self._anchor_frames:
-            return self._anchor_frames - first_pending
-        return self.config.window if self.config.mode == 'windowed' else 1
-
     def _run_block(self) -> None:
-        """Run the geometry branch on the held-back frames and queue (or do) the hand branch."""
-        frames, self._pending = self._pending, []
-        images = torch.stack([frame.pixels for frame in frames])[None]
-        intrinsics, known = given_intrinsics(frames)
+        """Run the geometry branch on the held-back frames (their hands follow in the pass)."""
+        count = len(self._pass.pending)
         try:
-            with torch.inference_mode():
-                geometry, poses, used = self.model.run_geometry(
-                    images, self._stream, [frame.keyframe for frame in frames], intrinsics,
-                    known, self._detection, self._cpu_bf16,
-                    masks=self._hand_source.uses_hand_branch, depth=False)
+            frames = self._pass.run_block()
         except ModelOutputError as exc:  # the block's frames were not added: forget them
-            self._frames_pushed -= len(frames)
+            self._frames_pushed -= count
             self._policy.accept(self._accepted_stamp)
             raise ModelOutputError(f'{self._checkpoint_name()}: {exc}') from exc
         self._accepted_stamp = frames[-1].timestamp_ns
         self._deferred.failed = False
-        used = self._lens.hold(frames, used)
-        if self._decoder is None:
-            future: Future = _done(self._hands(images, geometry, poses, used, frames))
-        else:
-            for in_flight in self._decoding:  # back-pressure: one window in the worker
-                in_flight.exception()  # waits; its results are collected below
-            future = self._decoder.submit(self._hands, images, geometry, poses, used, frames)
-        self._decoding.append(future)
 
-    def _hands(self, images: torch.Tensor, geometry: GeometryOutput, poses: torch.Tensor,
-               used: torch.Tensor, frames: list[PreparedFrame]) -> list[CameraSpaceFrame]:
-        """Find a block's hands with the hand source; split it into per-frame records."""
-        with self._stage(STAGE_HANDS):
-            source = self._hand_source
-            branch = self.model.geometry
-            with torch.inference_mode():
-                if source.uses_hand_branch:
-                    output: CameraSpaceOutput = self.model.run_hands(
-                        images, geometry, poses, used, None, self._detection)
-                    with self._stage(STAGE_SPLIT):
-                        records = split_frames(output, frames, branch, self._tracking)
-                else:
-                    with self._stage(STAGE_SPLIT):
-                        records = split_geometry(geometry, poses, used, frames, branch,
-                                                 self._tracking)
-            return [dataclasses.replace(record, hands=self._lift(record)) for record in records]
-
-    def _lift(self, record: CameraSpaceFrame) -> tuple[HandState, ...]:
-        """Return the hand source's camera-space hands of a frame's record (timed)."""
-        with self._stage(STAGE_LIFT):
-            return self._hand_source.camera_hands(record.frame.found(), record.hands,
-                                                  record.intrinsics)
-
-    def _collect(self, wait: bool) -> list[FrameResult]:
-        """Return finished results in order; wait for all of them when ``wait``."""
+    def _finish_ready(self, wait: bool) -> list[FrameResult]:
+        """Finish the records that are ready, in order; return their results (all: ``wait``)."""
         results: list[FrameResult] = []
-        while self._decoding and (wait or self._decoding[0].done()):
-            for record in self._decoding.popleft().result():
-                with self._stage(STAGE_FINISH):
-                    results.append(self._finish(record))
+        for record in self._pass.records(wait):
+            with self._stage(STAGE_FINISH):
+                results.append(self._finish(record))
         return results
 
     def _drain(self) -> None:
         """Wait for queued hand detection and decoding and drop their results (reset, close)."""
-        while self._decoding:
-            self._decoding.popleft().exception()
-        self._pending.clear()
+        self._pass.drain()
         self._deferred.drain()
         if self._reader is not None:
             self._reader.drain()
@@ -711,13 +554,10 @@ class StreamingEngine:
             self._geometry_seen = (frame.index, record.intrinsics, view.intrinsics)
         if frame.found().scene_cut or state == 'reinitialised':
             self._output.new_scene()
-        to_ba = (self._ba is not None and frame.keyframe and frame.source_image is not None
-                 and record.depth is not None
-                 and (self._ba_last_ns is None
-                      or frame.timestamp_ns - self._ba_last_ns >= self._ba_interval_ns))
+        to_ba = self._feed is not None and self._feed.wants(frame, record.depth is not None)
         kept = record.depth is not None and frame.keyframe and (to_ba or self.config.depth_maps)
         with self._stage(STAGE_TRACK):
-            track.observe_scale(*self._scale_samples(record, kept))
+            track.observe_scale(*self._scale_samples_of(record, kept))
         self._lens.collect(record)
         depth = (frame.mapping.map_to_source(record.depth.model()) * track.scale if kept
                  else None)
@@ -726,12 +566,7 @@ class StreamingEngine:
         if self._ba is not None:
             self._ba.fold_in(track)
             if to_ba:
-                self._ba_last_ns = frame.timestamp_ns
-                self._ba.offer(keyframe_input(frame.index, frame.timestamp_ns,
-                                              frame.source_image, depth,
-                                              track.scaled(frame.index), record.intrinsics,
-                                              record.hands, track.scale,
-                                              self._lens.calibrated(frame)))
+                self._feed.offer(record, depth, track, self._lens.calibrated(frame))
         with self._stage(STAGE_TRACK):
             best = track.best(frame.index)
         with self._stage(STAGE_PLACEMENT):
@@ -742,51 +577,14 @@ class StreamingEngine:
         with self._stage(STAGE_OUTPUT):
             return self._output.apply(result)
 
-    def _scale_samples(self, record: CameraSpaceFrame, depth_kept: bool
-                       ) -> tuple[np.ndarray, np.ndarray]:
-        """Return the metric-scale samples of a frame's hands (and their unit model depths).
-
-        On the frames that are sampled: every frame while the scale warms up; after that
-        every ``sample_interval``-th frame and any frame whose depth is computed anyway (a
-        tracker reference, or ``depth_kept``: a keyframe for BA or ``depth_maps``).
-        """
-        depth, hands = record.depth, record.hands
-        interval = self.config.metric_scale.sample_interval
-        if depth is None or not hands or not (
-                depth.computed or depth_kept or self.pose_track.scale_state == 'warmup'
-                or record.frame.index % interval == 0):
-            return np.zeros(0), np.zeros(0)
-        samples = depth_ratios(depth.model(), record.frame, hands) * self._scale_correction
-        return samples, np.ones(len(samples))
+    def _scale_samples_of(self, record: CameraSpaceFrame, depth_kept: bool
+                          ) -> tuple[np.ndarray, np.ndarray]:
+        """Return the metric-scale samples of a frame's hands (``scale_samples``)."""
+        return scale_samples(record, depth_kept, self.pose_track.scale_state == 'warmup',
+                             self.config.metric_scale.sample_interval, self._scale_correction)
 
     def _checkpoint_name(self) -> str:
         """Return what the weights came from, for error messages."""
         checkpoint = self.config.model.checkpoint
         return (f'checkpoint {checkpoint}' if checkpoint is not None
                 else f'seeded untrained weights (seed {self.config.model.seed})')
-
-
-def _scale_correction(config: EngineConfig) -> float:
-    """Return the hand-depth correction of the metric scale: configured, or the checkpoint's."""
-    configured = config.metric_scale.hand_depth_correction
-    if configured is not None:
-        return configured
-    checkpoint = config.model.checkpoint
-    return 1.0 if checkpoint is None else hand_depth_correction(resolve_checkpoint(checkpoint))
-
-
-@contextlib.contextmanager
-def _timed(timer: Callable[[str, float], None], name: str) -> Iterator[None]:
-    """Tell ``timer`` the seconds the body took, as ``name`` (also when it raises)."""
-    start = time.perf_counter()
-    try:
-        yield
-    finally:
-        timer(name, time.perf_counter() - start)
-
-
-def _done(records: list[CameraSpaceFrame]) -> Future:
-    """Return a finished future holding ``records`` (results queue in push order)."""
-    future: Future = Future()
-    future.set_result(records)
-    return future

@@ -22,10 +22,10 @@ from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.deferred_geometry import WorkerGate
 from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.pose_track import PoseTrackConfig
-from infinihand_ros.engine.deferred_geometry import WorkerGate
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence

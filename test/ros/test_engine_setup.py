@@ -51,12 +51,13 @@ def test_in_process_ba_never_makes_the_node_wait(tmp_path: Path) -> None:
 
 
 def test_camera_motion_and_output_parameters_reach_the_engine() -> None:
-    """camera.motion is the engine's camera_motion; smoothing.* its output stage's."""
+    """camera.* are the engine's camera_motion and restart_after_s; smoothing.* its output's."""
     smoothing = SmoothingConfig(mode='one_euro', beta=0.5)
-    config = engine_config_for(EstimatorConfig(camera=CameraSettings(motion='static'),
-                                               smoothing=smoothing))
-    assert config.camera_motion == 'static'
+    config = engine_config_for(EstimatorConfig(
+        camera=CameraSettings(motion='static', restart_after_s=2.5), smoothing=smoothing))
+    assert config.camera_motion == 'static' and config.restart_after_s == 2.5
     assert config.output.smoothing == smoothing
+    assert engine_config_for(_node()).restart_after_s == CameraSettings().restart_after_s
 
 
 def test_checkpoint_parameter_replaces_the_model_weights(tmp_path: Path) -> None:

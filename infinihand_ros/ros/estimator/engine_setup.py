@@ -2,9 +2,10 @@
 
 The YAML is ``config/engine.yaml`` unless ``engine.config`` names another. The ``engine.*``
 parameters select the mode, the keyframe and geometry intervals, device, checkpoint and BA;
-``camera.motion`` is the engine's ``camera_motion``, ``hands.*`` its hand source (they replace
-the file's ``hands`` section) and ``identity.*``, ``shape.*`` and ``smoothing.*`` its output
-stage (they replace the file's ``output`` section). Errors name the parameter.
+``camera.motion`` is the engine's ``camera_motion``, ``camera.restart_after_s`` its
+``restart_after_s`` (the stream policy), ``hands.*`` its hand source (they replace the file's
+``hands`` section) and ``identity.*``, ``shape.*`` and ``smoothing.*`` its output stage (they
+replace the file's ``output`` section). Errors name the parameter.
 """
 
 from dataclasses import replace
@@ -60,4 +61,5 @@ def engine_config_for(config: EstimatorConfig) -> EngineConfig:
                    geometry_interval=selection.geometry_interval,
                    geometry_lag=selection.geometry_lag, device=selection.device,
                    model=model, bundle_adjustment=ba,
-                   camera_motion=config.camera.motion, output=output, hands=config.hands)
+                   camera_motion=config.camera.motion, output=output, hands=config.hands,
+                   restart_after_s=config.camera.restart_after_s)
