@@ -5,7 +5,8 @@
         [--camera-motion static] [--json]
 
 Streams the sample bag's frames (``data/sample_bag``, cycled to ``--frames``) through the
-engine in each mode and times every stage with wall-clock timers wrapped around it: JPEG decode
+engine in each mode and times every stage (the engine's through ``StreamingEngine.stage_timer``,
+the model's and the node's with wall-clock timers wrapped around them): JPEG decode
 (the node's ``compressed_msg_to_image`` on the frames re-encoded at quality 90), preparing the
 frame (check, letterbox, to a tensor), the hand source's detection when it reads the image (in
 the engine's detection thread, beside the model, so not part of the main thread's time), the
@@ -38,13 +39,14 @@ import threading
 import time
 from types import SimpleNamespace
 from typing import Any
+from typing import Final
 
 import cv2
 from infinihand_ros.bag.camera_msgs import compressed_msg_to_image
 from infinihand_ros.bag.camera_stream import read_camera_frames
 from infinihand_ros.core.output_fields import PoseFields
 from infinihand_ros.core.units import NS_PER_S
-from infinihand_ros.engine import streaming_engine
+from infinihand_ros.engine import stage_timing
 from infinihand_ros.engine.config import CAMERA_MOTIONS
 from infinihand_ros.engine.hands.config import HAND_SOURCES
 from infinihand_ros.engine.model_builder import build_model
@@ -114,32 +116,35 @@ def _patch(stack: contextlib.ExitStack, owner: object, attribute: str,
         stack.callback(setattr, owner, attribute, original)
 
 
+#: The profile's names of the engine's stages (``StreamingEngine.stage_timer``).
+ENGINE_STAGES: Final = {
+    stage_timing.STAGE_PREPARE: 'prepare (fit to the model)',
+    stage_timing.STAGE_DETECTION: 'hand source detection (own thread)',
+    stage_timing.STAGE_HANDS: 'hands',
+    stage_timing.STAGE_SPLIT: 'hands/split into frames',
+    stage_timing.STAGE_LIFT: 'hands/hand source (lift, gate)',
+    stage_timing.STAGE_FINISH: 'engine bookkeeping',
+    stage_timing.STAGE_TRACK: 'engine bookkeeping/tracker',
+    stage_timing.STAGE_PLACEMENT: 'engine bookkeeping/world placement',
+    stage_timing.STAGE_OUTPUT: 'engine bookkeeping/output stage',
+}
+
+
 def _instrument(stack: contextlib.ExitStack, engine: StreamingEngine, clock: StageClock) -> None:
-    """Wrap the engine's and the model's stages in timers (undone when ``stack`` closes)."""
+    """Time the engine's stages (its stage timer) and the model's (undone as ``stack`` closes)."""
+    engine.stage_timer = lambda stage, seconds: clock.add(ENGINE_STAGES[stage], seconds)
+    stack.callback(setattr, engine, 'stage_timer', None)
     model = engine.model
     geometry = model.geometry
-    source = engine._hand_source
     stages: list[tuple[object, str, str]] = [
-        (engine, '_prepare', 'prepare (fit to the model)'),
-        (source, 'detect', 'hand source detection (own thread)'),
         (model, 'run_geometry', 'geometry branch'),
         (geometry.aggregator, 'forward', 'geometry branch/aggregator'),
         (geometry.camera_head, 'forward', 'geometry branch/camera head'),
         (geometry.mask_head, 'forward', 'geometry branch/mask head'),
         (geometry.depth_head, 'forward', 'depth head (on demand)'),
-        (engine, '_hands', 'hands'),
         (model, 'run_hands', 'hands/hand branch'),
         (infinihand_model, '_detect_hands', 'hands/hand branch/detection from masks'),
         (model.hand_branch, 'forward', 'hands/hand branch/crops to MANO'),
-        (streaming_engine, 'split_frames', 'hands/split into frames'),
-        (streaming_engine, 'split_geometry', 'hands/split into frames'),
-        (source, 'camera_hands', 'hands/hand source (lift, gate)'),
-        (engine, '_finish', 'engine bookkeeping'),
-        (engine.pose_track, 'add', 'engine bookkeeping/tracker'),
-        (engine.pose_track, 'observe_scale', 'engine bookkeeping/tracker'),
-        (engine.pose_track, 'best', 'engine bookkeeping/tracker'),
-        (streaming_engine, 'place_in_world', 'engine bookkeeping/world placement'),
-        (engine._output, 'apply', 'engine bookkeeping/output stage'),
     ]
     for block in geometry.aggregator.frame_blocks:
         stages.append((block, 'forward', 'geometry branch/aggregator/frame attention blocks'))
@@ -147,17 +152,14 @@ def _instrument(stack: contextlib.ExitStack, engine: StreamingEngine, clock: Sta
         stages.append((block, 'forward', 'geometry branch/aggregator/global attention blocks'))
     for owner, attribute, name in stages:
         _patch(stack, owner, attribute, clock.timed(getattr(owner, attribute), name))
-    memory = engine._stream.aggregator_memory
+    memory = engine.model_stream.aggregator_memory
     attend = memory.attend
 
     def counted_attend(layer: int, query: torch.Tensor, key: torch.Tensor,
                        value: torch.Tensor) -> torch.Tensor:
         if layer == 0:
             frames = max(1, query.shape[-2] // max(1, memory.tokens_per_frame))
-            every = memory._key_range.stop - memory._key_range.start
-            visible = memory._frame_keys or [None] * frames
-            clock.keys_per_query_frame.extend(every if keys is None else len(keys)
-                                              for keys in visible)
+            clock.keys_per_query_frame.extend(memory.keys_per_query_frame(frames))
         return attend(layer, query, key, value)
 
     _patch(stack, memory, 'attend', clock.timed(

@@ -20,6 +20,8 @@ from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.geometry import project_points
 from infinihand_ros.core.hand_conventions import MIDDLE_MCP
 from infinihand_ros.core.hand_conventions import WRIST
+from infinihand_ros.engine.camera_space import CameraSpaceFrame
+from infinihand_ros.engine.camera_space import PreparedFrame
 from infinihand_ros.engine.pose_track import PoseTrack
 import numpy as np
 
@@ -113,3 +115,32 @@ def prune_corrections(track: PoseTrack, stamps_still_used: list[int]) -> None:
     oldest = track.oldest_timestamp_ns
     if oldest is not None:
         track.corrections.prune(min([oldest, *stamps_still_used]))
+
+
+class KeyframeFeed:
+    """The keyframes a BA backend is offered: with image and depth, ``min_interval_s`` apart."""
+
+    def __init__(self, backend: BABackend, min_interval_s: float) -> None:
+        """Offer keyframes to ``backend``, at least ``min_interval_s`` apart by stamp."""
+        self.backend = backend
+        self._interval_ns = round(1e9 * min_interval_s)
+        self._last_ns: int | None = None  # stamp of the last keyframe offered
+
+    def wants(self, frame: PreparedFrame, has_depth: bool) -> bool:
+        """Return whether a frame goes to BA: a keyframe with its image and depth, not too soon."""
+        return (frame.keyframe and frame.source_image is not None and has_depth
+                and (self._last_ns is None
+                     or frame.timestamp_ns - self._last_ns >= self._interval_ns))
+
+    def offer(self, record: CameraSpaceFrame, depth_m: np.ndarray, track: PoseTrack,
+              calibrated: bool) -> None:
+        """Offer a keyframe (its metric depth, the track's scaled pose) to the backend."""
+        frame = record.frame
+        self._last_ns = frame.timestamp_ns
+        self.backend.offer(keyframe_input(frame.index, frame.timestamp_ns, frame.source_image,
+                                          depth_m, track.scaled(frame.index), record.intrinsics,
+                                          record.hands, track.scale, calibrated))
+
+    def reset(self) -> None:
+        """Start a new sequence: no keyframe offered yet."""
+        self._last_ns = None

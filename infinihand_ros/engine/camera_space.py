@@ -12,6 +12,7 @@ those are the pose track's (``engine/pose_track.py``) and ``engine/world_placeme
 from collections.abc import Callable
 from concurrent.futures import Future
 from dataclasses import dataclass
+from dataclasses import replace
 
 from infinihand_ros.core.datatypes import HandState
 from infinihand_ros.core.datatypes import Intrinsics
@@ -217,3 +218,11 @@ def depth_ratios(depth: np.ndarray, frame: PreparedFrame, hands: tuple[HandState
                                     torch.zeros(len(hands), dtype=torch.long),
                                     torch.as_tensor(joints_2d, dtype=torch.float64),
                                     torch.as_tensor(depths, dtype=torch.float64)))
+
+
+def with_hand_boxes(view: TrackingView, frame: PreparedFrame,
+                    hands: tuple[HandState, ...]) -> TrackingView:
+    """Return ``view`` with the hands' boxes in model-input pixels (never tracked)."""
+    boxes = [frame.mapping.points_to_model(hand.box_xyxy.reshape(2, 2)).reshape(4)
+             for hand in hands]
+    return replace(view, hand_boxes=np.array(boxes).reshape(-1, 4))

@@ -172,6 +172,11 @@ class EngineConfig:
             on its first block (the anchor frames); a fixed camera the median over its first
             this-many frames, and runs the geometry branch on those only (it has nothing else
             to give it); 0: intrinsics predicted on every frame (a zoom lens).
+        restart_after_s: a frame stamped more than this before the last accepted one starts
+            a new stream in ``push`` (a replay looping, a camera restarting, normal stamps
+            after a far-future one: the engine resets and the world frame restarts at it); one
+            stamped less far back, or not after it, is out of order (refused: ``InputError``);
+            0.0: never restart, s.
 
     """
 
@@ -193,6 +198,7 @@ class EngineConfig:
     hands: HandsConfig = field(default_factory=HandsConfig)
     depth_maps: bool = False
     lens_frames: int = 16
+    restart_after_s: float = 1.0
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -208,6 +214,7 @@ class EngineConfig:
                          geometry_interval=self.geometry_interval)
         require_at_least('engine', 0, lens_frames=self.lens_frames)
         require_at_least('engine', 0, geometry_lag=self.geometry_lag)
+        require_at_least('engine', 0.0, restart_after_s=self.restart_after_s)
         if self.geometry_interval > 1 and self.geometry_lag >= self.geometry_interval:
             raise ConfigError(f'engine.geometry_lag ({self.geometry_lag}) must be below '
                               f'engine.geometry_interval ({self.geometry_interval}): set it to '

@@ -303,6 +303,15 @@ class KVMemory:
             self._frame_keys = self._block_keys(plan, device)
         self._attended = [False] * self.num_layers
 
+    def keys_per_query_frame(self, frames: int) -> list[int]:
+        """Return how many keys each of the current block's ``frames`` query frames attends over.
+
+        The memory it sees plus its own block's keys (for profiling).
+        """
+        every = self._key_range.stop - self._key_range.start
+        visible = self._frame_keys or [None] * frames
+        return [every if keys is None else len(keys) for keys in visible]
+
     def context(self, layer: int) -> _LayerContext:
         """Return the attention context of ``layer`` for the current block."""
         if self._plan is None:

@@ -14,8 +14,9 @@ of the hand's mask.
 Skin is shaded from smoothed surface normals (the parts' normals averaged over a window about
 half a finger wide, so the seams between the parts do not show), with wrap-around diffuse light,
 a faint specular sheen and lighter palms; silhouettes are anti-aliased. Hands and forearms cast
-soft shadows on the scene (a shadow map from each light, looked up per scene point, blurred).
-Sensor effects follow: motion blur over the exposure, Gaussian noise and JPEG compression.
+soft shadows on the scene (``synth/shadows.py``: a shadow map from each light, looked up per
+scene point, blurred). Sensor effects follow (``synth/sensor.py``): motion blur over the
+exposure, Gaussian noise and JPEG compression.
 
 Pixel convention (OpenCV): pixel (column i, row j) shows the ray through image point
 (u, v) = (i, j), i.e. ``K^-1 [i, j, 1]`` in the OpenCV optical camera frame (x right, y down,
@@ -28,7 +29,6 @@ from typing import Final
 
 import cv2
 from infinihand_ros.core.errors import InputError
-from infinihand_ros.core.geometry import project_points
 from infinihand_ros.core.hand_conventions import FINGER_JOINTS
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
@@ -39,11 +39,12 @@ from infinihand_ros.mano import capsules as caps
 from infinihand_ros.mano.capsules import PARALLEL_EPS
 from infinihand_ros.synth.scene import Lighting
 from infinihand_ros.synth.scene import Scene
+from infinihand_ros.synth.sensor import degrade
+from infinihand_ros.synth.sensor import expose
+from infinihand_ros.synth.sensor import Exposure
+from infinihand_ros.synth.shadows import cast_shadows
 import numpy as np
-from scipy.special import ndtri
 
-#: Number of noise levels (one random byte per pixel and channel picks a Gaussian quantile).
-NOISE_LEVELS: Final = 256
 #: Owner of pixels that show no hand or arm capsule.
 NO_CAPSULE: Final = -1
 #: Standard deviation (m at the surface) of the Gaussian that smooths the skin's normals.
@@ -73,20 +74,6 @@ SKIN_SHININESS: Final = 12.0
 #: How much of the wrist's motion the bare forearm, the sleeved forearm and the upper arm
 #: follow during the exposure (the elbow and the shoulder move less).
 ARM_WRIST_MOTION: Final = (1.0, 0.5, 0.25)
-#: Motion blur: most samples of the exposure per image, the least motion (px) blurred, and the
-#: block side (px) at whose centres the scene's motion is computed (then interpolated).
-EXPOSURE_SAMPLES: Final = 8
-MIN_BLUR_PX: Final = 0.5
-FLOW_STEP: Final = 4
-#: Shadows the hands and arms cast on the scene: side (px) of the shadow maps seen from each
-#: light, how far the directional light's map is from the bodies (m), the depth margin before
-#: a point counts as behind an occluder (m), the penumbra (m at the receiver, Gaussian sigma)
-#: and the image block (px) at whose centres shadows are computed (then interpolated).
-SHADOW_MAP_PX: Final = 64
-SUN_DISTANCE_M: Final = 20.0
-SHADOW_BIAS_M: Final = 0.01
-PENUMBRA_M: Final = 0.008
-SHADOW_STEP: Final = 4
 #: Palms are lighter and pinker than the back of the hand: blend towards this colour.
 PALM_RGB: Final = (242, 196, 180)
 PALM_BLEND: Final = 0.3
@@ -171,31 +158,6 @@ class RenderOptions:
                 f'RenderOptions.jpeg_quality must be 0 (off) to 100, got {self.jpeg_quality}')
         if self.near_m <= 0:
             raise InputError(f'RenderOptions.near_m must be > 0 metres, got {self.near_m}')
-
-
-@dataclass(frozen=True)
-class Exposure:
-    """Where the camera and the hands are when the shutter opens and when it closes.
-
-    The image is the average over the exposure, the motion linear in between; the frame's own
-    pose and joints (``render_frame``'s) are those of its middle, and its depth and masks.
-
-    Attributes:
-        T_world_cam: (2, 4, 4) camera-to-world poses at the opening and at the closing.
-        joints_world: (2, H, 21, 3) joints of the H hands (``render_frame``'s order) at the
-            opening and at the closing (world frame, m).
-
-    """
-
-    T_world_cam: np.ndarray
-    joints_world: np.ndarray
-
-    def __post_init__(self) -> None:
-        as_array(self.T_world_cam, 'Exposure.T_world_cam', (2, 4, 4))
-        joints = np.asarray(self.joints_world, np.float64)
-        if joints.ndim != 4 or joints.shape[0] != 2 or joints.shape[2:] != (NUM_JOINTS, 3):
-            raise InputError(f'Exposure.joints_world: expected shape (2, H, {NUM_JOINTS}, 3), '
-                             f'got {joints.shape}')
 
 
 @dataclass
@@ -465,145 +427,6 @@ def _bodies(frame: _Frame, hands: Sequence[HandGeometry]) -> _Bodies:
                    stack(weights, NUM_JOINTS))
 
 
-@dataclass(frozen=True)
-class _LightView:
-    """The bodies seen from a light: its pinhole camera and their depth in it.
-
-    Attributes:
-        lamp: True for the point lamp, False for the directional light (seen from afar).
-        rotation: (3, 3) world -> light camera.
-        origin: (3,) the camera's centre (world, m).
-        k: (3, 3) the light camera's intrinsics (``SHADOW_MAP_PX`` square image).
-        depth: (SHADOW_MAP_PX, SHADOW_MAP_PX) float32 depth of the nearest body (m; inf: none).
-
-    """
-
-    lamp: bool
-    rotation: np.ndarray
-    origin: np.ndarray
-    k: np.ndarray
-    depth: np.ndarray
-
-
-def _light_views(frame: _Frame, bodies: _Bodies, lighting: Lighting) -> list[_LightView]:
-    """Depth maps of the bodies seen from each light that can cast their shadows.
-
-    The lamp and the directional light (a pinhole far along its direction), each aimed at the
-    bodies' bounding sphere; a light inside it or off casts none.
-    """
-    to_world = frame.rot_cw.T
-    # Casters: the hands and their forearms (an upper arm's shadow falls out of view).
-    index = np.arange(len(bodies.capsules.radii))
-    casters = bodies.capsules.subset((index < bodies.num_hand)
-                                     | ((index - bodies.num_hand) % 3 != 2))
-    points = np.concatenate([casters.starts, casters.ends])
-    centre_cam = 0.5 * (points.min(axis=0) + points.max(axis=0))
-    radius = float(np.linalg.norm(points - centre_cam, axis=1).max()) + float(casters.radii.max())
-    centre = to_world @ (centre_cam - frame.t_cw)
-    views = []
-    for lamp, factor, origin in (
-            (True, lighting.lamp, np.asarray(lighting.lamp_world, np.float64)),
-            (False, lighting.diffuse,
-             centre + SUN_DISTANCE_M * np.asarray(lighting.direction_world, np.float64))):
-        distance = float(np.linalg.norm(centre - origin))
-        if factor <= 0.0 or distance <= radius * 1.05:
-            continue
-        forward = (centre - origin) / distance
-        side = np.cross(forward, [0.0, 0.0, 1.0] if abs(forward[2]) < 0.9 else [1.0, 0.0, 0.0])
-        side /= np.linalg.norm(side)
-        rot = np.stack([side, np.cross(forward, side), forward])  # world -> light camera
-        half_angle = np.arcsin(radius / distance)
-        focal = 0.5 * SHADOW_MAP_PX / np.tan(half_angle)
-        k = np.array([[focal, 0.0, SHADOW_MAP_PX / 2.0], [0.0, focal, SHADOW_MAP_PX / 2.0],
-                      [0.0, 0.0, 1.0]])
-        # The light camera <- the frame's camera, through the world.
-        rotation = rot @ to_world
-        translation = rot @ (-to_world @ frame.t_cw - origin)
-        depth = _shadow_map(casters, bodies.palms, rotation, translation, k)
-        views.append(_LightView(lamp, rot, origin, k, depth))
-    return views
-
-
-def _shadow_map(capsules: caps.CapsuleSet, palms: caps.PalmSet, rotation: np.ndarray,
-                translation: np.ndarray, k: np.ndarray) -> np.ndarray:
-    """Depth (m) of the nearest body in a light's square image; inf where none.
-
-    Capsules are drawn as thick lines and palms as filled polygons, far to near, each at its
-    nearest depth: coarse outlines, as the shadows they cast are blurred.
-    """
-    size = SHADOW_MAP_PX
-    depth = np.full((size, size), np.inf, np.float32)
-    scale = 1 << SUBPIXEL_BITS
-    move = (lambda points: points @ rotation.T + translation)
-    project = (lambda points: np.round(project_points(points, k) * scale).astype(np.int32))
-    ends = np.stack([move(capsules.starts), move(capsules.ends)], axis=1)  # (N, 2, 3)
-    radii = capsules.radii.max(axis=1)
-    nearest = ends[..., 2].min(axis=1) - radii
-    widths = np.maximum(1, np.round(2.0 * k[0, 0] * radii / ends[..., 2].mean(axis=1)))
-    lines = np.flatnonzero(nearest > 0.0)
-    pixels = project(ends[lines])
-    shapes = [(nearest[i], pixels[row], int(widths[i])) for row, i in enumerate(lines)]
-    for index in range(len(palms.sides)):
-        rim = move(palms.centres[index] + palms.polygons[index] @ palms.axes[index, :2])
-        closest = rim[:, 2].min() - palms.half_thickness[index]
-        if closest > 0.0:
-            shapes.append((closest, project(rim), 0))
-    for closest, points, width in sorted(shapes, key=lambda shape: -shape[0]):
-        if width:
-            cv2.line(depth, tuple(points[0]), tuple(points[1]), float(closest), width,
-                     cv2.LINE_8, SUBPIXEL_BITS)
-        else:
-            cv2.fillConvexPoly(depth, points, float(closest), cv2.LINE_8, SUBPIXEL_BITS)
-    return depth
-
-
-def _cast_shadows(frame: _Frame, bodies: _Bodies, lighting: Lighting) -> None:
-    """Darken the scene where the hands and arms keep a light from it (soft shadow maps).
-
-    Each scene point seen (at the centre of every ``SHADOW_STEP`` block) is looked up in each
-    light's depth map of the bodies; behind an occluder it loses that light's share of its
-    shading (Lambert, the normal from the depth map), softened over ``PENUMBRA_M``.
-    """
-    if len(bodies.capsules.radii) == 0 or not (frame.inv_depth > 0).any():
-        return
-    views = _light_views(frame, bodies, lighting)
-    if not views:
-        return
-    height, width = frame.inv_depth.shape
-    step = SHADOW_STEP
-    rows = np.minimum(np.arange(-(-height // step)) * step + step // 2, height - 1)
-    cols = np.minimum(np.arange(-(-width // step)) * step + step // 2, width - 1)
-    inv_depth = frame.inv_depth[rows][:, cols].astype(np.float64)
-    seen = inv_depth > 0
-    depth = np.where(seen, 1.0 / np.maximum(inv_depth, PARALLEL_EPS), 0.0)
-    cam = np.stack([frame.ray_x[cols][None, :] * depth, frame.ray_y[rows][:, None] * depth,
-                    depth], axis=-1)
-    world = (cam - frame.t_cw) @ frame.rot_cw
-    normals = np.cross(np.gradient(world, axis=1), np.gradient(world, axis=0))
-    normals /= np.maximum(np.linalg.norm(normals, axis=-1, keepdims=True), PARALLEL_EPS)
-    eye = -frame.rot_cw.T @ frame.t_cw
-    normals *= np.where(np.sum(normals * (eye - world), axis=-1, keepdims=True) < 0, -1.0, 1.0)
-    sun, lamp = lighting.direct_terms(world, normals)
-    total = lighting.ambient + sun + lamp
-    lost = np.zeros(depth.shape)
-    for light in views:
-        local = (world - light.origin) @ light.rotation.T
-        u, v = np.round(project_points(local, light.k)).astype(int).transpose(2, 0, 1)
-        inside = (seen & (local[..., 2] > frame.near_m) & (u >= 0) & (u < SHADOW_MAP_PX)
-                  & (v >= 0) & (v < SHADOW_MAP_PX))
-        occluder = np.full(depth.shape, np.inf)
-        occluder[inside] = light.depth[v[inside], u[inside]]
-        lost += (local[..., 2] > occluder + SHADOW_BIAS_M) * (lamp if light.lamp else sun)
-    if not lost.any():
-        return
-    keep = 1.0 - np.where(seen, lost / np.maximum(total, PARALLEL_EPS), 0.0)
-    median_depth = max(float(np.median(depth[seen])), PARALLEL_EPS)
-    sigma = float(np.clip(frame.k[0, 0] * PENUMBRA_M / median_depth / step, 0.5, 8.0))
-    keep = _upsampled(cv2.GaussianBlur(keep.astype(np.float32), (0, 0), sigma), step, height,
-                      width)
-    frame.rgb[:] = np.clip(frame.rgb * keep[..., None] + 0.5, 0, 255).astype(np.uint8)
-
-
 def _local_mean(values: np.ndarray, rows: np.ndarray, cols: np.ndarray,
                 sigma_px: float) -> np.ndarray:
     """Gaussian-weighted mean (N, C) of values (N, C) at pixels (rows, cols) over their neighbours.
@@ -698,167 +521,10 @@ def _antialias(rgb: np.ndarray, covered: np.ndarray, rows: np.ndarray, cols: np.
     rgb[y0:y1, x0:x1][band] = blurred[band]
 
 
-def _upsampled(coarse: np.ndarray, step: int, height: int, width: int) -> np.ndarray:
-    """Bilinear upsampling of values at the centres of ``step``-pixel blocks to (height, width)."""
-    blocks_y, blocks_x = coarse.shape[:2]
-    return cv2.resize(coarse, (blocks_x * step, blocks_y * step),
-                      interpolation=cv2.INTER_LINEAR)[:height, :width]
-
-
-def _shifted_pixels(k: np.ndarray, u: np.ndarray, v: np.ndarray, depth: np.ndarray,
-                    rot: np.ndarray, shift: np.ndarray,
-                    travel: np.ndarray | None = None) -> np.ndarray:
-    """Offsets (..., 2) from pixels (u, v) to where their points land in another camera.
-
-    The points lie at ``depth`` along the pixels' rays in this camera; the other camera sees a
-    point ``p`` at ``rot @ p + shift``, after it moved by ``travel`` ((..., 3), this camera's
-    axes; None: static).
-    """
-    ray_x = (u - k[0, 2]) / k[0, 0]
-    ray_y = (v - k[1, 2]) / k[1, 1]
-    moved = np.stack([depth * (rot[i, 0] * ray_x + rot[i, 1] * ray_y + rot[i, 2]) + shift[i]
-                      for i in range(3)], axis=-1)
-    if travel is not None:
-        moved += travel
-    return project_points(moved, k) - np.stack(np.broadcast_arrays(u, v), axis=-1)
-
-
-def _expose(frame: _Frame, bodies: _Bodies, owner: np.ndarray, hands: Sequence[HandGeometry],
-            exposure: Exposure) -> None:
-    """Blur the image with the motion of the camera and the hands during the exposure.
-
-    Each pixel's surface point moves (with its hand's joints, or with the scene) from where it
-    is at the shutter's opening to where it is at its closing, and the camera moves too; the
-    pixel averages the image along that path. Hands and arms also smear over the pixels they
-    sweep: a pixel shows them for the share of the exposure they cover it (``_moving_layer``).
-    """
-    height, width = owner.shape
-    depth = np.full((height, width), 1e3, np.float32)  # empty pixels: far away
-    np.divide(1.0, frame.inv_depth, out=depth, where=frame.inv_depth > 0)
-    rot_wc, origin = frame.rot_cw.T, -frame.rot_cw.T @ frame.t_cw
-    # The scene's paths vary smoothly: computed at the centre of every FLOW_STEP-pixel block and
-    # interpolated; the hands' and arms' pixels exactly.
-    step = FLOW_STEP
-    blocks_y, blocks_x = -(-height // step), -(-width // step)
-    centre_x = np.arange(blocks_x) * step + (step - 1) / 2.0
-    centre_y = np.arange(blocks_y) * step + (step - 1) / 2.0
-    coarse = np.empty((blocks_y, blocks_x, 4), np.float32)
-    sampled = depth[np.minimum(centre_y.astype(int), height - 1)][
-        :, np.minimum(centre_x.astype(int), width - 1)]
-    moving = owner != NO_CAPSULE
-    rows, cols = np.nonzero(moving)
-    exact = np.empty((rows.size, 4), np.float32)
-    if rows.size:
-        mid = np.array([np.asarray(hand.joints_world, np.float64) for hand in hands])
-        ids = owner[rows, cols]
-    for end, (T_world_cam, joints) in enumerate(zip(exposure.T_world_cam, exposure.joints_world)):
-        pose = np.asarray(T_world_cam, np.float64)
-        rot = pose[:3, :3].T @ rot_wc  # this end's camera <- the frame's camera
-        shift = pose[:3, :3].T @ (origin - pose[:3, 3])
-        coarse[..., 2 * end:2 * end + 2] = _shifted_pixels(
-            frame.k, centre_x[None, :], centre_y[:, None], sampled, rot, shift)
-        if rows.size:
-            part = np.einsum('pj,pjc->pc', bodies.joint_weights,
-                             (np.asarray(joints, np.float64) - mid)[bodies.hand_index])
-            travel = part[ids] @ pose[:3, :3]  # world motion, in this camera
-            exact[:, 2 * end:2 * end + 2] = _shifted_pixels(
-                frame.k, cols, rows, depth[rows, cols], rot, shift, travel)
-    offsets = _upsampled(coarse, step, height, width)
-    offsets[rows, cols] = exact
-    path = offsets[..., 2:] - offsets[..., :2]
-    longest = float(np.sqrt((path * path).sum(axis=-1).max()))
-    if longest < MIN_BLUR_PX:
-        return
-    samples = int(min(EXPOSURE_SAMPLES, np.ceil(longest) + 1))
-    pixels = np.stack(np.meshgrid(np.arange(width, dtype=np.float32),
-                                  np.arange(height, dtype=np.float32)), axis=-1)
-    layer = _moving_layer(moving, offsets, pixels) if rows.size else None
-    grid = pixels - offsets[..., :2]
-    total = np.zeros(frame.rgb.shape, np.float32)
-    for fraction in np.linspace(0.0, 1.0, samples):
-        where = cv2.scaleAdd(path, -fraction, grid)
-        image = cv2.remap(frame.rgb, where[..., 0], where[..., 1], cv2.INTER_LINEAR,
-                          borderMode=cv2.BORDER_REPLICATE)
-        cv2.accumulate(image, total)
-        if layer is not None:
-            y0, y1, x0, x1 = layer.region
-            where = cv2.scaleAdd(layer.travel, -fraction, layer.start)
-            alpha = cv2.remap(layer.cover, where[..., 0], where[..., 1], cv2.INTER_LINEAR,
-                              borderMode=cv2.BORDER_CONSTANT)
-            body = cv2.remap(frame.rgb, where[..., 0], where[..., 1], cv2.INTER_LINEAR,
-                             borderMode=cv2.BORDER_REPLICATE)
-            # Where the moving layer covers the pixel it shows the layer instead.
-            total[y0:y1, x0:x1] += alpha[..., None] * (np.float32(body) - image[y0:y1, x0:x1])
-    frame.rgb[:] = np.clip(total * np.float32(1.0 / samples) + 0.5, 0, 255).astype(np.uint8)
-
-
-@dataclass(frozen=True)
-class _Layer:
-    """The hands and arms as a layer sweeping over the image during the exposure.
-
-    Attributes:
-        region: (y0, y1, x0, x1) pixels they can reach.
-        start: (h, w, 2) where each pixel of the region looks into the layer at the opening.
-        travel: (h, w, 2) how far that moves until the closing (px).
-        cover: (H, W) float32, 1 on the layer's pixels in the frame's image.
-
-    """
-
-    region: tuple[int, int, int, int]
-    start: np.ndarray
-    travel: np.ndarray
-    cover: np.ndarray
-
-
-def _moving_layer(moving: np.ndarray, offsets: np.ndarray, pixels: np.ndarray) -> _Layer | None:
-    """Build the layer of the moving pixels; None when none moves a pixel or more.
-
-    Moving pixels follow their own paths, the others within reach the mean path of the moving
-    pixels around them (so the layer smears over them along its motion).
-    """
-    rows, cols = np.nonzero(moving)
-    travel = offsets[rows, cols, 2:] - offsets[rows, cols, :2]
-    reach = int(np.ceil(float(np.sqrt((travel * travel).sum(axis=-1).max())) / 2.0))
-    if reach < 1:
-        return None
-    height, width = moving.shape
-    y0, y1 = max(int(rows.min()) - reach, 0), min(int(rows.max()) + reach + 1, height)
-    x0, x1 = max(int(cols.min()) - reach, 0), min(int(cols.max()) + reach + 1, width)
-    inside = moving[y0:y1, x0:x1]
-    cover = moving.astype(np.float32)
-    size = 2 * reach + 1
-    own = offsets[y0:y1, x0:x1]
-    weight = cv2.blur(cover[y0:y1, x0:x1], (size, size), borderType=cv2.BORDER_CONSTANT)
-    mean = cv2.blur(own * cover[y0:y1, x0:x1, None], (size, size),
-                    borderType=cv2.BORDER_CONSTANT)
-    mean /= np.maximum(weight, np.float32(1e-6))[..., None]
-    carried = (~inside & (weight > 0.5 / size ** 2))[..., None]  # a moving pixel within reach
-    paths = np.where(carried, mean, own)
-    return _Layer((y0, y1, x0, x1), pixels[y0:y1, x0:x1] - paths[..., :2],
-                  paths[..., 2:] - paths[..., :2], cover)
-
-
 def _hand_masks(bodies: _Bodies, owner: np.ndarray) -> np.ndarray:
     """Visible pixels (2, H, W) bool of the left and right hands (arms excluded)."""
     pixel_side = np.append(bodies.hand_sides, -1)[owner]
     return np.stack([pixel_side == side for side in SIDES])
-
-
-def _degrade(rgb: np.ndarray, options: RenderOptions) -> np.ndarray:
-    """Apply Gaussian noise and JPEG compression to a uint8 image."""
-    if options.noise_sigma > 0:
-        # Gaussian noise by inverse-CDF lookup of random bytes (256 quantiles, rounded to
-        # integers), several times faster than drawing normal floats.
-        rng = np.random.default_rng(options.noise_seed)
-        quantiles = ndtri((np.arange(NOISE_LEVELS) + 0.5) / NOISE_LEVELS)
-        table = np.round(quantiles * options.noise_sigma).astype(np.int16)
-        noise_bytes = np.frombuffer(rng.bytes(rgb.size), np.uint8).reshape(rgb.shape)
-        rgb = cv2.add(rgb, cv2.LUT(noise_bytes, table), dtype=cv2.CV_8U)
-    if options.jpeg_quality > 0:
-        bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)
-        _, encoded = cv2.imencode('.jpg', bgr, [cv2.IMWRITE_JPEG_QUALITY, options.jpeg_quality])
-        rgb = cv2.cvtColor(cv2.imdecode(encoded, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
-    return rgb
 
 
 def render_frame(scene: Scene, K: np.ndarray, T_world_cam: np.ndarray, width: int, height: int,
@@ -896,14 +562,16 @@ def render_frame(scene: Scene, K: np.ndarray, T_world_cam: np.ndarray, width: in
     frame = _new_frame(k, pose, int(width), int(height), options.near_m)
     _draw_scene(frame, scene)
     bodies = _bodies(frame, hands)
-    _cast_shadows(frame, bodies, scene.lighting)
+    cast_shadows(frame, bodies, scene.lighting)
     owner = _draw_bodies(frame, bodies.capsules, bodies.palms)
     _shade_bodies(frame, bodies, owner, scene.lighting)
     if exposure is not None:
         if np.shape(exposure.joints_world)[1] != len(hands):
             raise InputError(f'exposure: joints of {np.shape(exposure.joints_world)[1]} hands '
                              f'for {len(hands)} hands')
-        _expose(frame, bodies, owner, hands, exposure)
+        expose(frame, bodies, owner, owner != NO_CAPSULE,
+               [hand.joints_world for hand in hands], exposure)
     depth = np.full(frame.inv_depth.shape, np.inf, np.float32)
     np.divide(1.0, frame.inv_depth, out=depth, where=frame.inv_depth > 0)
-    return RenderOutput(_degrade(frame.rgb, options), depth, _hand_masks(bodies, owner))
+    rgb = degrade(frame.rgb, options.noise_sigma, options.noise_seed, options.jpeg_quality)
+    return RenderOutput(rgb, depth, _hand_masks(bodies, owner))

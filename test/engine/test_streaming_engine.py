@@ -22,11 +22,11 @@ from infinihand_ros.engine import ba_in_process
 from infinihand_ros.engine.ba_in_process import InProcessBA
 from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.engine.config import EngineConfig
+from infinihand_ros.engine.deferred_geometry import WorkerGate
 from infinihand_ros.engine.frame_input import fit_image
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.pose_track import PoseTrackConfig
 from infinihand_ros.engine.settings import load_engine_config
-from infinihand_ros.engine.streaming_engine import _Gate
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
@@ -666,7 +666,7 @@ def test_a_failed_geometry_after_the_answer_is_counted_and_runs_first_next(
         pushed = iter(frames)
         for frame in pushed:
             engine.push(frame.rgb, frame.timestamp_ns, frame.intrinsics)
-            if engine._owed is not None:
+            if engine._deferred.owed_index is not None:
                 break
         owed_index = frame.index
         monkeypatch.setattr(engine.model, 'run_geometry', fail)
@@ -693,7 +693,7 @@ def test_the_geometry_worker_waits_at_block_boundaries_while_a_call_is_inside() 
 
     Only the worker thread waits, and only until the push leaves.
     """
-    gate = _Gate()
+    gate = WorkerGate()
     started, passed = threading.Event(), threading.Event()
 
     def worker() -> None:

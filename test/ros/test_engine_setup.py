@@ -38,6 +38,7 @@ def test_profile_and_set_reach_the_engine() -> None:
     assert (config.mode, config.keyframe_interval, config.geometry_interval) == \
         ('windowed', 3, 1)
     assert config.bundle_adjustment is None  # the node's none wins over the profile's BA
+    assert engine_config_for(_node(set='restart_after_s=2.5')).restart_after_s == 2.5
     synthetic = engine_config_for(_node(profile='synthetic'))
     assert synthetic.hands.source == 'infinihand'  # hands.* left at its default: the profile's
 

@@ -8,6 +8,7 @@ from infinihand_ros.core.hand_conventions import NUM_JOINTS
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.mano import capsules as caps
 from infinihand_ros.synth import render
+from infinihand_ros.synth import sensor
 from infinihand_ros.synth.camera_motion import sample_intrinsics
 from infinihand_ros.synth.render import ArmGeometry
 from infinihand_ros.synth.render import Exposure
@@ -340,7 +341,7 @@ def test_a_turning_camera_blurs_an_edge_by_its_motion_only_while_exposed() -> No
 
     # A sweep of length L adds L^2 / 12 to the variance (a box), (n + 1) / (n - 1) times that
     # for the n samples of the exposure; 12 px need all EXPOSURE_SAMPLES.
-    samples = render.EXPOSURE_SAMPLES
+    samples = sensor.EXPOSURE_SAMPLES
     sweep = np.sqrt(12.0 * (spread(blurred.rgb) - spread(still.rgb))
                     * (samples - 1) / (samples + 1))
     assert sweep == pytest.approx(K[0, 0] * angle, rel=0.1)

@@ -128,17 +128,12 @@ class CameraSettings:
                                         'at most this far from its own, s.', 0.0, 3600.0)
     info_wait_s: float = parameter(0.2, 'Once CameraInfos arrive, an image waits at most this '
                                    'long for its own (it may come just after it), s.', 0.0, 10.0)
-    restart_after_s: float = parameter(
-        1.0, 'An image stamped more than this before the last accepted one starts a new stream '
-        '(a replay looping, a camera restarting, normal stamps after a far-future one): the '
-        'engine resets and the world frame restarts at it; one stamped less far back is skipped '
-        'as out of order; 0.0: never restart, s.', 0.0, 3600.0)
     fallback: FallbackIntrinsics = nested(FallbackIntrinsics)
 
     def __post_init__(self) -> None:
         check_parameters(self, 'camera.')
         require_at_least('camera', 0.0, info_tolerance_s=self.info_tolerance_s,
-                         info_wait_s=self.info_wait_s, restart_after_s=self.restart_after_s)
+                         info_wait_s=self.info_wait_s)
 
 
 @dataclass(frozen=True)

@@ -10,12 +10,16 @@ callback also decodes the image and starts its hand detection at once
 frame (encoding, size, truncated data, bad CameraInfo) is logged, throttled, counted and skipped;
 so is an image whose stamp is not after the last accepted image's (late or repeated: the engine
 needs increasing stamps), checked before it can replace a waiting frame and again before it is
-decoded. An image stamped more than ``camera.restart_after_s`` before the last accepted one (a
+decoded. An image stamped more than the engine's ``restart_after_s`` (1 s; ``engine.set``)
+before the last accepted one (a
 replay looping, a camera restarting, normal stamps after a far-future one) starts a new stream
 instead: the engine resets (a new world frame, pose track and BA), the camera path and the stream's
 CameraInfos start afresh, and the image is the new stream's first; one warning and
-``stream_restarts`` say so. Inputs (relative, remappable): ``image``, ``image/compressed``,
-``camera_info``, with sensor-data QoS overridable by parameters. Bundle adjustment is off by
+``stream_restarts`` say so. The engine's stream policy (``engine/stream_policy.py``) decides;
+the node asks it first
+(``StreamingEngine.stamp_step``) to skip or restart before it decodes and pairs the image.
+Inputs (relative, remappable): ``image``, ``image/compressed``, ``camera_info``, with
+sensor-data QoS overridable by parameters. Bundle adjustment is off by
 default (``engine.bundle_adjustment: none``); with ``in_process`` it runs in the engine's
 background worker process, no frame waits for it, and its corrections move later poses. With
 ``engine.bundle_adjustment: node`` the engine's ``RemoteBA`` backend offers keyframes and takes
@@ -46,7 +50,6 @@ from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.engine.ba_remote import RemoteBA
 from infinihand_ros.engine.output.camera_path import CameraPath
 from infinihand_ros.engine.streaming_engine import StreamingEngine
-from infinihand_ros.engine.timestamps import stamp_step
 from infinihand_ros.engine.timestamps import StampStep
 from infinihand_ros.ros import msg_builders
 from infinihand_ros.ros.estimator.ba_node_client import BANodeClient
@@ -107,9 +110,6 @@ class EstimatorNode(Node):
         # (message, arrival ns, its RGB image when decoded on arrival for detect_ahead)
         self._slot: LatestFrameSlot[tuple[Any, int, np.ndarray | None]] = LatestFrameSlot()
         self._arrivals: OrderedDict[int, int] = OrderedDict()  # image stamp -> arrival, ns
-        # Stamp of the last image the engine took, ns; written by the inference thread only.
-        self._last_accepted_ns: int | None = None
-        self._restart_after_ns = int(self.config.camera.restart_after_s * NS_PER_S)
         self._image_topics: dict[type, str] = {}  # message type -> resolved topic name
         self.outputs = OutputPublishers(self, self.config.outputs, self.config.frames,
                                         self.config.tf,
@@ -168,13 +168,13 @@ class EstimatorNode(Node):
             self.statistics.frame_dropped()
 
     def _stamp_step(self, msg: Image | CompressedImage, stamp_ns: int) -> StampStep:
-        """Return how the image's stamp follows the last accepted one; count one out of order.
+        """Return how the engine's stream policy takes the image's stamp; count one out of order.
 
         The warning is throttled (``bad_frame_log_period_s``): however many come, one line per
         period; each one is counted in ``frames_out_of_order``.
         """
-        last = self._last_accepted_ns
-        step = stamp_step(stamp_ns, last, self._restart_after_ns)
+        last = self.engine.last_accepted_ns
+        step = self.engine.stamp_step(stamp_ns)
         if step is StampStep.OUT_OF_ORDER:
             self.statistics.frame_out_of_order()
             self.get_logger().warning(
@@ -192,11 +192,11 @@ class EstimatorNode(Node):
         new stamp and, with the BA node, the keyframes sent (their late results are refused;
         the BA node starts a new sequence when the keyframe stamps go back).
         """
-        last = self._last_accepted_ns
+        last = self.engine.last_accepted_ns
         self.statistics.stream_restarted()
         self.get_logger().warning(
             f'{self._image_topics[type(msg)]}: an image stamped {stamp_ns} ns, more than '
-            f'camera.restart_after_s before the last accepted image stamped {last} ns (a '
+            f'restart_after_s before the last accepted image stamped {last} ns (a '
             'replay loop, a camera restart or a far-future stamp before): a new stream starts '
             'with it and the world frame restarts (counted in stream_restarts)',
             throttle_duration_sec=self.config.bad_frame_log_period_s)
@@ -204,7 +204,6 @@ class EstimatorNode(Node):
         self._engine_statistics = self.engine.statistics
         self.path.clear()
         self._arrivals.clear()
-        self._last_accepted_ns = None
         with self._pairing_lock:
             self._pairing.forget_after(stamp_ns)
             self._paired_once = False  # the new stream's first image waits for its CameraInfo
@@ -264,7 +263,6 @@ class EstimatorNode(Node):
             rgb = decode_image(msg) if rgb is None else rgb
             choice = self._intrinsics_for(stamp_ns, rgb.shape[1], rgb.shape[0])
             results = self.engine.push(rgb, stamp_ns, choice.intrinsics)
-            self._last_accepted_ns = stamp_ns
             self.statistics.intrinsics_used(choice.source)
         except InputError as exc:
             self._bad_frame(f'skipping the image stamped {stamp_ns}: {exc}')
