@@ -17,6 +17,7 @@ from infinihand_ros.convert.run import engine_config_for
 from infinihand_ros.core.config import config_dir
 from infinihand_ros.core.config import config_to_dict
 from infinihand_ros.core.errors import ConfigError
+from infinihand_ros.core.geometry import invert_transform
 from infinihand_ros.core.parameters import parameter_table
 from infinihand_ros.engine import build_engine_config
 from infinihand_ros.engine import StreamingEngine
@@ -32,6 +33,7 @@ from infinihand_ros.eval.reference_clip import hand_scores
 from infinihand_ros.eval.reference_clip import load_reference_clip
 from infinihand_ros.eval.reference_clip import mediapipe_hands
 from infinihand_ros.ros.estimator.config import EstimatorConfig
+import numpy as np
 import pytest
 
 REAL_EGO = Path(__file__).resolve().parents[3] / 'shared' / 'data' / 'real_ego'
@@ -142,12 +144,26 @@ def test_the_converter_runs_its_profile_with_its_overrides() -> None:
         EngineChoice(profile='lab')
 
 
+def _corroborated(hand, result, reference, index: int, frames: int = 10) -> bool:
+    """Return whether MediaPipe alone finds a hand of ``hand``'s side near it in time and place."""
+    T_cam_world = invert_transform(result.camera_pose.matrix())
+    camera = hand.joints_world @ T_cam_world[:3, :3].T + T_cam_world[:3, 3]
+    projected = camera @ result.intrinsics.matrix().T
+    centre = (projected[:, :2] / projected[:, 2:3]).mean(axis=0)
+    for theirs in reference[max(index - frames, 0):index + frames + 1]:
+        landmarks = theirs.get(hand.side)
+        if landmarks is not None and np.linalg.norm(landmarks.mean(axis=0) - centre) <= 1.5 * \
+                np.max(landmarks.max(axis=0) - landmarks.min(axis=0)):
+            return True
+    return False
+
+
 @pytest.mark.slow
 def test_the_python_api_default_writes_no_phantom_hand_on_a_real_clip() -> None:
     """StreamingEngine() on a real two-handed head-camera clip writes no phantom hand.
 
-    Every hand it writes is one MediaPipe alone finds on that side (within 3 frames), and its
-    world joints land on MediaPipe's landmarks.
+    Every hand it writes is near one MediaPipe alone finds on that side, and its world joints
+    land on MediaPipe's landmarks.
 
     (The synthetic profile's hand branch, the old default, put a hand on every frame of a real
     clip and none where it was.)
@@ -164,12 +180,12 @@ def test_the_python_api_default_writes_no_phantom_hand_on_a_real_clip() -> None:
     reference = mediapipe_hands(folder)
     scores = hand_scores(results, reference)
     assert len(results) == len(reference)
-    # A hand on a side MediaPipe alone has none for that frame is one it misses for a frame or
-    # two (it has no tracking across frames): within 3 frames MediaPipe finds that side too.
+    # MediaPipe alone (no tracking across frames) misses real hands for a few frames where ours
+    # follows them, so a written hand is a phantom only where MediaPipe finds no hand of its
+    # side near it (centres within 1.5 hand boxes) within 10 frames.
     phantoms = [(index, hand.side) for index, result in enumerate(results)
                 for hand in result.hands
-                if not any(hand.side in theirs for theirs in reference[max(index - 3, 0):
-                                                                       index + 4])]
+                if not _corroborated(hand, result, reference, index)]
     assert phantoms == []
     assert scores['found_same_side'] >= 0.6
     assert scores['reprojection_median'] <= 0.15

@@ -32,7 +32,7 @@ class HandsConfig:
                                       0, 1)
     min_detection_confidence: float = parameter(0.5, 'MediaPipe palm detections scoring lower '
                                                 'are dropped.', 0.0, 1.0)
-    min_tracking_confidence: float = parameter(0.8, 'MediaPipe re-detects a tracked hand whose '
+    min_tracking_confidence: float = parameter(0.5, 'MediaPipe re-detects a tracked hand whose '
                                                'landmark score falls below this.', 0.0, 1.0)
     search_interval: int = parameter(
         3, 'MediaPipe: with one hand tracked, look for a second hand on every this-many-th '
