@@ -76,6 +76,7 @@ from infinihand_ros.engine.config import load_engine_config
 from infinihand_ros.engine.frame_input import check_image
 from infinihand_ros.engine.frame_input import check_intrinsics
 from infinihand_ros.engine.frame_input import fit_image
+from infinihand_ros.engine.frame_input import LensRectifier
 from infinihand_ros.engine.hands.source import build_hand_source
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.model_builder import InfiniHandModel
@@ -196,6 +197,7 @@ class StreamingEngine:
         # Detections started at the images' arrival (detect_ahead), by stamp.
         self._ahead: dict[int, Future] = {}
         self._ahead_lock = threading.Lock()
+        self._rectifier = LensRectifier()  # distorted frames -> pinhole ones with the same K
         self._guard = threading.Lock()
         self._closed = False
         self._start_sequence()
@@ -254,7 +256,8 @@ class StreamingEngine:
             timestamp_ns: the image's stamp, integer nanoseconds, increasing; copied to its
                 result.
             intrinsics: the camera's intrinsics for this image size, or None to use the
-                model's predicted field of view.
+                model's predicted field of view; a lens with distortion is rectified to the
+                pinhole camera with the same K first (``frame_input.LensRectifier``).
 
         Raises:
             InputError: for a bad image, stamp or intrinsics; the stream is left unchanged.
@@ -264,6 +267,7 @@ class StreamingEngine:
 
         """
         with self._exclusive():
+            image = self._rectifier.rectify(image, intrinsics)  # pinhole from here on
             frame = self._prepare(image, timestamp_ns, intrinsics)
             self._frames_pushed += 1
             self._last_stamp = frame.timestamp_ns
@@ -308,7 +312,7 @@ class StreamingEngine:
         if not self.detects_ahead or self._closed:
             return False
         try:
-            image = check_image(image)
+            image = self._rectifier.rectify_like_last(check_image(image))
         except InputError:
             return False  # push reports it
         with self._ahead_lock:
