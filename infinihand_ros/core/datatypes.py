@@ -33,7 +33,8 @@ class Intrinsics:
     ``distortion_model`` is None for a pinhole camera, else one of ``core.distortion``'s
     ``DISTORTION_MODELS`` (``plumb_bob``, ``rational_polynomial``, ``equidistant``) with its
     ``distortion`` coefficients in ROS / OpenCV order (coerced to a tuple of floats; the wrong
-    count, a non-finite value or an unknown model raise ``InputError``). The coefficients act
+    count, a non-finite value or an unknown model raise ``InputError``; all zeros is pinhole,
+    model None). The coefficients act
     on normalised coordinates: a scaled or shifted image keeps them (only K changes).
     """
 

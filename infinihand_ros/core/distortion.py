@@ -41,6 +41,8 @@ def check_distortion(model: object, coefficients: object, name: str = 'intrinsic
                      ) -> tuple[str | None, tuple[float, ...]]:
     """Return a lens's (model, coefficients) checked; (None, ()) is pinhole.
 
+    A model whose coefficients are all zero is the pinhole camera: (None, ()) too.
+
     Args:
         model: a name of ``DISTORTION_MODELS``, or None (or '') for pinhole.
         coefficients: the model's coefficients (any sequence of real numbers), in order.
@@ -75,6 +77,8 @@ def check_distortion(model: object, coefficients: object, name: str = 'intrinsic
             raise InputError(f'{name}: {model} coefficient {coefficient} must be a finite '
                              f'number, got {value!r}')
         checked.append(float(value))
+    if not any(checked):
+        return None, ()  # zero coefficients bend no ray: the pinhole camera, whatever the model
     return str(model), tuple(checked)
 
 

@@ -74,7 +74,8 @@ def test_intrinsics_carry_a_checked_lens() -> None:
     assert lens.is_distorted and not lens.pinhole().is_distorted
     assert lens.pinhole().distortion_model is None
     assert lens.with_matrix(600, 610, 322, 236, 640, 480).distortion == lens.distortion
-    assert not Intrinsics(300, 305, 161, 118, 320, 240, 'plumb_bob', (0,) * 5).is_distorted
+    zeros = Intrinsics(300, 305, 161, 118, 320, 240, 'plumb_bob', (0,) * 5)
+    assert zeros == zeros.pinhole() and zeros.distortion_model is None
     assert Intrinsics(300, 305, 161, 118, 320, 240).distortion_model is None
 
 
