@@ -844,7 +844,7 @@ def _hand_masks(bodies: _Bodies, owner: np.ndarray) -> np.ndarray:
     return np.stack([pixel_side == side for side in SIDES])
 
 
-def _degrade(rgb: np.ndarray, options: RenderOptions) -> np.ndarray:
+def degrade(rgb: np.ndarray, options: RenderOptions) -> np.ndarray:
     """Apply Gaussian noise and JPEG compression to a uint8 image."""
     if options.noise_sigma > 0:
         # Gaussian noise by inverse-CDF lookup of random bytes (256 quantiles, rounded to
@@ -906,4 +906,4 @@ def render_frame(scene: Scene, K: np.ndarray, T_world_cam: np.ndarray, width: in
         _expose(frame, bodies, owner, hands, exposure)
     depth = np.full(frame.inv_depth.shape, np.inf, np.float32)
     np.divide(1.0, frame.inv_depth, out=depth, where=frame.inv_depth > 0)
-    return RenderOutput(_degrade(frame.rgb, options), depth, _hand_masks(bodies, owner))
+    return RenderOutput(degrade(frame.rgb, options), depth, _hand_masks(bodies, owner))
