@@ -33,8 +33,8 @@ class Intrinsics:
     ``distortion_model`` is None for a pinhole camera, else one of ``core.distortion``'s
     ``DISTORTION_MODELS`` (``plumb_bob``, ``rational_polynomial``, ``equidistant``) with its
     ``distortion`` coefficients in ROS / OpenCV order (coerced to a tuple of floats; the wrong
-    count, a non-finite value or an unknown model raise ``InputError``; all zeros is pinhole,
-    model None). The coefficients act
+    count, a non-finite value or an unknown model raise ``InputError``; a polynomial model with
+    all zeros is pinhole, model None). The coefficients act
     on normalised coordinates: a scaled or shifted image keeps them (only K changes).
     """
 
@@ -61,8 +61,8 @@ class Intrinsics:
 
     @property
     def is_distorted(self) -> bool:
-        """Return whether the lens bends rays (a model with a non-zero coefficient)."""
-        return self.distortion_model is not None and any(self.distortion)
+        """Return whether the lens bends rays (any model: zero polynomials are dropped)."""
+        return self.distortion_model is not None
 
     def pinhole(self) -> 'Intrinsics':
         """Return the same K and size without distortion (the rectified image's intrinsics)."""

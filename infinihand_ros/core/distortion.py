@@ -5,7 +5,8 @@ models, with its coefficients in the order ROS and OpenCV use:
 
 - ``plumb_bob``: k1, k2, p1, p2, k3 (Brown-Conrady, OpenCV's 5-coefficient model);
 - ``rational_polynomial``: k1, k2, p1, p2, k3, k4, k5, k6 (OpenCV's 8-coefficient model);
-- ``equidistant``: k1, k2, k3, k4 (the fisheye model of ``cv2.fisheye``).
+- ``equidistant``: k1, k2, k3, k4 (the fisheye model of ``cv2.fisheye``: the radius grows
+  with the ray's angle, r = f * theta * (1 + k1 theta^2 + ...), so even zeros bend rays).
 
 The coefficients act on normalised camera coordinates, so they hold for any image that is a
 scale and shift of the calibrated one (resized, cropped, letterboxed): only K changes.
@@ -41,7 +42,8 @@ def check_distortion(model: object, coefficients: object, name: str = 'intrinsic
                      ) -> tuple[str | None, tuple[float, ...]]:
     """Return a lens's (model, coefficients) checked; (None, ()) is pinhole.
 
-    A model whose coefficients are all zero is the pinhole camera: (None, ()) too.
+    ``plumb_bob`` or ``rational_polynomial`` with all coefficients zero is the pinhole camera:
+    (None, ()) too. ``equidistant`` with zeros is not (r = f * theta, not f * tan(theta)).
 
     Args:
         model: a name of ``DISTORTION_MODELS``, or None (or '') for pinhole.
@@ -77,8 +79,8 @@ def check_distortion(model: object, coefficients: object, name: str = 'intrinsic
             raise InputError(f'{name}: {model} coefficient {coefficient} must be a finite '
                              f'number, got {value!r}')
         checked.append(float(value))
-    if not any(checked):
-        return None, ()  # zero coefficients bend no ray: the pinhole camera, whatever the model
+    if model != EQUIDISTANT and not any(checked):
+        return None, ()  # zero polynomial coefficients bend no ray: the pinhole camera
     return str(model), tuple(checked)
 
 

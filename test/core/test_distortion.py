@@ -76,6 +76,7 @@ def test_intrinsics_carry_a_checked_lens() -> None:
     assert lens.with_matrix(600, 610, 322, 236, 640, 480).distortion == lens.distortion
     zeros = Intrinsics(300, 305, 161, 118, 320, 240, 'plumb_bob', (0,) * 5)
     assert zeros == zeros.pinhole() and zeros.distortion_model is None
+    assert Intrinsics(300, 305, 161, 118, 320, 240, 'equidistant', (0,) * 4).is_distorted
     assert Intrinsics(300, 305, 161, 118, 320, 240).distortion_model is None
 
 
