@@ -216,8 +216,10 @@ class HandState:
         side: 0 left, 1 right.
         mano_cam: MANO parameters in the camera frame.
         joints_cam: (21, 3) joints in the camera frame, metres, OpenPose order.
-        joints_2d: (21, 2) joints in image pixels.
-        box_xyxy: (4,) box in pixels (x0, y0, x1, y1).
+        joints_2d: (21, 2) joints in image pixels; for a lens with distortion, the pixels of the
+            image rectified to the pinhole camera with the same K (what the engine reads;
+            ``core.distortion.distort_pixels`` maps them into the raw image).
+        box_xyxy: (4,) box in pixels (x0, y0, x1, y1), in the same image as ``joints_2d``.
         confidence: presence score in [0, 1].
         mano_world: MANO parameters in the world frame, when the camera pose is known.
         joints_world: (21, 3) joints in the world frame, metres, when the camera pose is known.
