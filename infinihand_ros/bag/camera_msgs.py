@@ -3,6 +3,11 @@
 Compressed images follow image_transport's ``compressed`` plugin: ``format`` reads
 ``'<original encoding>; <jpeg|png> compressed <bgr8|rgb8>'``.
 
+CameraInfo's ``distortion_model`` and ``d`` are read into the intrinsics' lens
+(``core.distortion``: ``plumb_bob``, ``rational_polynomial``, ``equidistant``); an empty ``d``
+(an uncalibrated driver) is a pinhole camera. A pinhole camera is written as ``plumb_bob`` with
+five zeros, as camera drivers do.
+
 Builders take a rosbags typestore; the readers only use message attributes, so they accept rosbags
 messages and rclpy messages alike.
 """
@@ -16,12 +21,15 @@ from infinihand_ros.bag.typestore import COMPRESSED_IMAGE_MSG
 from infinihand_ros.bag.typestore import HEADER_MSG
 from infinihand_ros.bag.typestore import IMAGE_MSG
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.distortion import COEFFICIENT_NAMES
+from infinihand_ros.core.distortion import DISTORTION_MODELS
 from infinihand_ros.core.errors import InputError
 import numpy as np
 from rosbags.typesys.store import Typestore
 
 #: Channels of each supported encoding; images inside the core are always RGB uint8.
 ENCODING_CHANNELS: Final = {'rgb8': 3, 'bgr8': 3, 'mono8': 1}
+#: What a pinhole camera is written as: plumb_bob with five zero coefficients.
 DISTORTION_MODEL: Final = 'plumb_bob'
 #: Codecs of CompressedImage messages, with their OpenCV file extensions.
 CODEC_EXTENSIONS: Final = {'jpeg': '.jpg', 'png': '.png'}
@@ -107,7 +115,8 @@ def compressed_msg_to_image(msg: Any) -> np.ndarray:
 
 def camera_info_to_msg(typestore: Typestore, intrinsics: Intrinsics, timestamp_ns: int,
                        frame_id: str) -> Any:
-    """Build a ``sensor_msgs/msg/CameraInfo`` for an undistorted pinhole camera."""
+    """Build a ``sensor_msgs/msg/CameraInfo`` of the intrinsics and their lens distortion."""
+    model, d = camera_info_distortion(intrinsics)
     k = intrinsics.matrix()
     projection = np.hstack([k, np.zeros((3, 1))])
     header = typestore.types[HEADER_MSG](stamp=stamp_from_ns(typestore, timestamp_ns),
@@ -116,19 +125,42 @@ def camera_info_to_msg(typestore: Typestore, intrinsics: Intrinsics, timestamp_n
         x_offset=0, y_offset=0, height=0, width=0, do_rectify=False)
     return typestore.types[CAMERA_INFO_MSG](
         header=header, height=intrinsics.height, width=intrinsics.width,
-        distortion_model=DISTORTION_MODEL, d=np.zeros(5), k=k.reshape(-1), r=np.eye(3).reshape(-1),
+        distortion_model=model, d=np.asarray(d, np.float64), k=k.reshape(-1),
+        r=np.eye(3).reshape(-1),
         p=projection.reshape(-1), binning_x=0, binning_y=0, roi=roi)
 
 
+def camera_info_distortion(intrinsics: Intrinsics) -> tuple[str, list[float]]:
+    """Return CameraInfo's (``distortion_model``, ``d``) of the intrinsics' lens."""
+    if intrinsics.distortion_model is None:
+        return DISTORTION_MODEL, [0.0] * len(COEFFICIENT_NAMES[DISTORTION_MODEL])
+    return intrinsics.distortion_model, list(intrinsics.distortion)
+
+
 def camera_info_to_intrinsics(msg: Any) -> Intrinsics:
-    """Read ``Intrinsics`` from a CameraInfo message.
+    """Read ``Intrinsics``, lens distortion included, from a CameraInfo message.
 
     Raises:
-        InputError: when K is all zeros (uncalibrated), holds NaN, or the size is zero.
+        InputError: when K is all zeros (uncalibrated), holds NaN, the size is zero, or the
+            distortion model is unknown or has the wrong number of coefficients.
 
     """
     k = np.asarray(msg.k, dtype=np.float64).reshape(3, 3)
     if not np.any(k):
         raise InputError('camera_info: K is all zeros (camera not calibrated); calibrate it or '
                          'let the model predict the field of view')
-    return Intrinsics.from_matrix(k, int(msg.width), int(msg.height))
+    intrinsics = Intrinsics.from_matrix(k, int(msg.width), int(msg.height))
+    model = str(getattr(msg, 'distortion_model', ''))
+    d = [float(value) for value in np.asarray(getattr(msg, 'd', ()), dtype=np.float64).ravel()]
+    if not d or (not model and not any(d)):
+        return intrinsics  # an uncalibrated lens: pinhole
+    if model not in DISTORTION_MODELS:
+        raise InputError(f'camera_info: distortion model {model!r} is not supported (use one '
+                         f'of {list(DISTORTION_MODELS)}); publish the rectified image '
+                         '(image_proc) with its CameraInfo instead, or recalibrate with a '
+                         'supported model')
+    try:
+        return Intrinsics(intrinsics.fx, intrinsics.fy, intrinsics.cx, intrinsics.cy,
+                          intrinsics.width, intrinsics.height, model, d)
+    except InputError as exc:
+        raise InputError(f'camera_info: {exc}') from exc

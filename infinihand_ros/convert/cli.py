@@ -33,7 +33,9 @@ from infinihand_ros.convert.run import resolve_video_size
 from infinihand_ros.convert.run import RunOptions
 from infinihand_ros.core.atomic_io import check_writable_location
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.distortion import parse_distortion
 from infinihand_ros.core.errors import InfiniHandError
+from infinihand_ros.core.errors import InputError
 from infinihand_ros.engine.settings import add_settings_arguments
 from infinihand_ros.engine.settings import save_engine_settings
 from infinihand_ros.engine.settings import SETTINGS_FILE
@@ -72,6 +74,11 @@ def build_parser() -> argparse.ArgumentParser:
                         help='split inputs into episodes of at most this many seconds')
     parser.add_argument('--intrinsics', help='fx,fy,cx,cy,width,height of video and image inputs '
                         '(default: predicted by the model)')
+    parser.add_argument('--distortion', metavar='MODEL:COEFFS',
+                        help='lens distortion of --intrinsics, as CameraInfo has it: '
+                        'plumb_bob:k1,k2,p1,p2,k3, rational_polynomial:k1,k2,p1,p2,k3,k4,k5,k6 '
+                        'or equidistant:k1,k2,k3,k4 (fisheye), e.g. plumb_bob:-0.25,0.08,0,0,0 '
+                        '(default: none, a pinhole camera; bags carry their own)')
     parser.add_argument('--video-size', metavar='WxH', help="size of the dataset's videos; "
                         'inputs of another size are fitted to it, intrinsics mapped (default: '
                         "the existing dataset's, else the first input's)")
@@ -94,18 +101,28 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _intrinsics(text: str | None) -> Intrinsics | None:
+def _intrinsics(text: str | None, distortion: str | None = None) -> Intrinsics | None:
     if text is None:
+        if distortion is not None:
+            raise UsageError(f'--distortion {distortion!r} needs --intrinsics (the lens '
+                             'distorts the pinhole camera they describe)')
         return None
     parts = text.split(',')
     try:
         if len(parts) != 6:
             raise ValueError(f'{len(parts)} values')
         fx, fy, cx, cy = (float(part) for part in parts[:4])
-        return Intrinsics(fx, fy, cx, cy, int(parts[4]), int(parts[5]))
+        intrinsics = Intrinsics(fx, fy, cx, cy, int(parts[4]), int(parts[5]))
     except ValueError as exc:
         raise UsageError(f'--intrinsics {text!r}: expected fx,fy,cx,cy,width,height '
                          f'({exc})') from exc
+    if distortion is None:
+        return intrinsics
+    try:
+        model, coefficients = parse_distortion(distortion)
+    except InputError as exc:
+        raise UsageError(str(exc)) from exc
+    return replace(intrinsics, distortion_model=model, distortion=coefficients)
 
 
 def validate_args(args: argparse.Namespace) -> tuple[ConvertConfig, RunOptions]:
@@ -142,7 +159,8 @@ def validate_args(args: argparse.Namespace) -> tuple[ConvertConfig, RunOptions]:
         raise UsageError(str(exc)) from exc
     if args.input_fps is not None and not args.input_fps > 0:
         raise UsageError(f'--input-fps {args.input_fps}: expected a rate above 0 (Hz)')
-    return config, RunOptions(args.output, args.image_topic, _intrinsics(args.intrinsics),
+    intrinsics = _intrinsics(args.intrinsics, args.distortion)
+    return config, RunOptions(args.output, args.image_topic, intrinsics,
                               progress=not args.quiet, input_fps=args.input_fps)
 
 

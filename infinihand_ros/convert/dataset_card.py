@@ -29,7 +29,8 @@ FEATURE_NOTES: Final = {
                   '(convert.dataset.action_offset)'),
     feat.CAMERA_POSE: ('m', 'camera-to-world pose T_world_cam, row-major 4x4, on the final '
                        'trajectory of the episode'),
-    feat.INTRINSICS: ('px', 'fx, fy, cx, cy of the video frame (pixel centres at integers)'),
+    feat.INTRINSICS: ('px', 'fx, fy, cx, cy of the video frame (pixel centres at integers); '
+                      "the lens distortion is the episode's `lens` in meta/conversion.json"),
     feat.CAMERA_FLAGS: ('bool', 'keyframe (entered the streaming memory); ba_corrected '
                         '(bundle adjustment moved the pose); tracked (the pose was measured in '
                         "the image, else the network's motion was used); reinitialised (the "
@@ -102,16 +103,25 @@ def _made(records: list[dict[str, Any]]) -> list[str]:
     provenances = Counter(json.dumps(record.get('provenance', {}), sort_keys=True)
                           for record in records)
     lines = ['Converted by `bag_to_dataset` (infinihand_ros) from these inputs:', '',
-             '| episode | source | original size | fitting |', '|---|---|---|---|']
+             '| episode | source | original size | fitting | lens distortion |',
+             '|---|---|---|---|---|']
     for record in records:
         image = record.get('image') or {}
         size = 'x'.join(map(str, image.get('source_size', []))) or 'unknown'
         lines.append(f"| {record['episode_index']} | `{record['source']}` | {size} | "
-                     f"{image.get('mode', 'unknown')} |")
+                     f"{image.get('mode', 'unknown')} | {_lens_text(record.get('lens'))} |")
     lines += ['', 'Provenance (episodes: what made them):', '']
     for text, count in provenances.items():
         lines.append(f'- {count} episode(s): `{text}`')
     return lines
+
+
+def _lens_text(lens: dict[str, Any] | None) -> str:
+    """Return an episode's lens as the card shows it (``meta/conversion.json`` has it all)."""
+    if not lens or lens.get('distortion_model') is None:
+        return 'none (pinhole)'
+    coefficients = ', '.join(f'{value:g}' for value in lens.get('distortion', []))
+    return f"{lens['distortion_model']}: {coefficients}"
 
 
 def _limitations(records: list[dict[str, Any]]) -> list[str]:

@@ -122,7 +122,8 @@ class DatasetWriter:
         placed = self._place_files(index, columns, episode)
         episode.report.episode_index = index
         record = {'episode_index': index, 'source': episode.report.source, 'task': task,
-                  'image': episode.image, 'provenance': episode.provenance,
+                  'image': episode.image, 'lens': episode.lens,
+                  'provenance': episode.provenance,
                   'report': episode.report.to_dict()}
         try:
             self._write_meta(self._rows + [row], self._records + [record], features)

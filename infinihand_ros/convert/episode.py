@@ -6,7 +6,9 @@ rate. Video frames and image statistics are written as frames arrive; the engine
 (without depth maps) are kept until the episode ends, when they are placed on the final
 trajectory (``StreamingEngine.refined``: every BA correction, the final metric scale) and turned
 into feature vectors and estimates, and ``action`` (the state ``action_offset`` frames later;
-the last frames repeat the final state) can be filled in.
+the last frames repeat the final state) can be filled in. The episode's lens (``lens_record``:
+the distortion model and coefficients its intrinsics carried) goes into its record; the video
+keeps the source's distortion, so ``camera.intrinsics`` and the lens describe its pixels.
 """
 
 from collections import Counter
@@ -69,6 +71,7 @@ class EpisodeData:
         report: the episode's report (filled in).
         image: how the source frames were fitted to the video (``image_fit.mapping_record``).
         provenance: what converted it (``provenance.Provenance.to_dict``).
+        lens: the video's lens distortion (``lens_record``).
 
     """
 
@@ -80,6 +83,7 @@ class EpisodeData:
     report: EpisodeReport
     image: dict[str, Any] = field(default_factory=dict)
     provenance: dict[str, Any] = field(default_factory=dict)
+    lens: dict[str, Any] = field(default_factory=dict)
 
     @property
     def length(self) -> int:
@@ -162,7 +166,21 @@ def convert_episode(frames: Iterable[SourceFrame], engine: StreamingEngine,
     _fill_report(report, columns, collector, push_of_slot, source_stamps, config)
     report.seconds = time.perf_counter() - start
     return EpisodeData(columns, video_path, video_info, image_stats.stats(),
-                       bag.path if bag is not None else None, report)
+                       bag.path if bag is not None else None, report, lens=lens_record(results))
+
+
+def lens_record(results: list[FrameResult]) -> dict[str, Any]:
+    """Return the episode's lens: ``distortion_model`` (None: pinhole) and ``distortion``.
+
+    It is the first frame's that carries a distortion model (a camera keeps its lens), with
+    ``frames_distorted``, how many frames carried one.
+    """
+    distorted = [result.intrinsics for result in results
+                 if result.intrinsics.distortion_model is not None]
+    first = distorted[0] if distorted else None
+    return {'distortion_model': None if first is None else first.distortion_model,
+            'distortion': [] if first is None else list(first.distortion),
+            'frames_distorted': len(distorted)}
 
 
 def _without_depth(results: list[FrameResult]) -> list[FrameResult]:

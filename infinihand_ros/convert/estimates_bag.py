@@ -6,15 +6,19 @@ Topics (every header stamp is the source image's): ``/estimates/hand_frame``
 ``/estimates/hands/{left,right}/landmarks`` (``geometry_msgs/msg/PoseArray``, 21 world joints in
 OpenPose order; empty when the hand is not placed in the world) and ``/estimates/markers``
 (``visualization_msgs/msg/MarkerArray``: both hand skeletons and the camera path of the newest
-``path_length`` frames, ``convert.estimate_markers``). Every frame is in the world frame.
+``path_length`` frames, ``convert.estimate_markers``) and ``/estimates/camera_info``
+(``sensor_msgs/msg/CameraInfo`` of the intrinsics used, with the lens distortion model and
+coefficients, in the camera frame). Every other frame is in the world frame.
 """
 
 from pathlib import Path
 from typing import Any, Final
 
+from infinihand_ros.bag.camera_msgs import camera_info_to_msg
 from infinihand_ros.bag.messages import frame_result_to_msg
 from infinihand_ros.bag.messages import pose_to_msg
 from infinihand_ros.bag.messages import stamp_from_ns
+from infinihand_ros.bag.typestore import CAMERA_INFO_MSG
 from infinihand_ros.bag.typestore import HAND_FRAME_MSG
 from infinihand_ros.bag.typestore import HEADER_MSG
 from infinihand_ros.bag.typestore import POINT_MSG
@@ -39,6 +43,7 @@ HAND_FRAME_TOPIC: Final = '/estimates/hand_frame'
 CAMERA_POSE_TOPIC: Final = '/estimates/camera_pose'
 LANDMARK_TOPICS: Final = tuple(f'/estimates/hands/{side}/landmarks' for side in SIDE_NAMES)
 MARKERS_TOPIC: Final = '/estimates/markers'
+CAMERA_INFO_TOPIC: Final = '/estimates/camera_info'
 ROSBAG_VERSION: Final = 9
 
 
@@ -72,7 +77,7 @@ class EstimatesBagWriter:
         self._writer.open()
         wanted = {HAND_FRAME_TOPIC: HAND_FRAME_MSG, CAMERA_POSE_TOPIC: POSE_STAMPED_MSG,
                   **dict.fromkeys(LANDMARK_TOPICS, POSE_ARRAY_MSG),
-                  MARKERS_TOPIC: MARKER_ARRAY_MSG}
+                  MARKERS_TOPIC: MARKER_ARRAY_MSG, CAMERA_INFO_TOPIC: CAMERA_INFO_MSG}
         self._connections = {topic: self._writer.add_connection(topic, msgtype,
                                                                 typestore=typestore)
                              for topic, msgtype in wanted.items()}
@@ -85,7 +90,9 @@ class EstimatesBagWriter:
         messages: dict[str, Any] = {
             HAND_FRAME_TOPIC: frame_result_to_msg(store, result, topics.WORLD_FRAME_ID),
             CAMERA_POSE_TOPIC: store.types[POSE_STAMPED_MSG](
-                header=header, pose=pose_to_msg(store, result.camera_pose))}
+                header=header, pose=pose_to_msg(store, result.camera_pose)),
+            CAMERA_INFO_TOPIC: camera_info_to_msg(store, result.intrinsics, stamp,
+                                                  topics.CAMERA_FRAME_ID)}
         for side, topic in zip(SIDES, LANDMARK_TOPICS):
             hand = result.hand(side)
             messages[topic] = store.types[POSE_ARRAY_MSG](

@@ -6,10 +6,12 @@ are camera-to-world (``T_world_cam``).
 
 from dataclasses import dataclass
 from dataclasses import field
+from dataclasses import replace
 import math
 import numbers
 
 from infinihand_ros.core import geometry
+from infinihand_ros.core.distortion import check_distortion
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import NUM_BETAS
 from infinihand_ros.core.hand_conventions import NUM_HAND_POSE_JOINTS
@@ -21,12 +23,19 @@ import numpy as np
 
 @dataclass(frozen=True)
 class Intrinsics:
-    """Pinhole intrinsics of one image (pixels), principal point anywhere.
+    """Intrinsics of one image (pixels), principal point anywhere, with its lens distortion.
 
     Fields are coerced at construction: ``fx, fy, cx, cy`` to finite Python floats (from ints,
     floats or numpy scalars) and ``width, height`` to Python ints (from integral values).
     Strings, booleans, NaN, infinities, non-positive focal lengths and non-positive or
     fractional sizes raise ``InputError`` naming the field.
+
+    ``distortion_model`` is None for a pinhole camera, else one of ``core.distortion``'s
+    ``DISTORTION_MODELS`` (``plumb_bob``, ``rational_polynomial``, ``equidistant``) with its
+    ``distortion`` coefficients in ROS / OpenCV order (coerced to a tuple of floats; the wrong
+    count, a non-finite value or an unknown model raise ``InputError``; a polynomial model with
+    all zeros is pinhole, model None). The coefficients act
+    on normalised coordinates: a scaled or shifted image keeps them (only K changes).
     """
 
     fx: float
@@ -35,6 +44,8 @@ class Intrinsics:
     cy: float
     width: int
     height: int
+    distortion_model: str | None = None
+    distortion: tuple[float, ...] = ()
 
     def __post_init__(self) -> None:
         for name in ('fx', 'fy', 'cx', 'cy'):
@@ -44,6 +55,23 @@ class Intrinsics:
                 f'intrinsics: focal lengths must be positive, got fx={self.fx}, fy={self.fy}')
         for name in ('width', 'height'):
             object.__setattr__(self, name, _positive_int(getattr(self, name), name))
+        model, coefficients = check_distortion(self.distortion_model, self.distortion)
+        object.__setattr__(self, 'distortion_model', model)
+        object.__setattr__(self, 'distortion', coefficients)
+
+    @property
+    def is_distorted(self) -> bool:
+        """Return whether the lens bends rays (any model: zero polynomials are dropped)."""
+        return self.distortion_model is not None
+
+    def pinhole(self) -> 'Intrinsics':
+        """Return the same K and size without distortion (the rectified image's intrinsics)."""
+        return replace(self, distortion_model=None, distortion=())
+
+    def with_matrix(self, fx: float, fy: float, cx: float, cy: float, width: int,
+                    height: int) -> 'Intrinsics':
+        """Return new K and size with this lens's distortion (a scaled or shifted image)."""
+        return Intrinsics(fx, fy, cx, cy, width, height, self.distortion_model, self.distortion)
 
     @classmethod
     def from_matrix(cls, matrix: np.ndarray, width: int, height: int) -> 'Intrinsics':
@@ -188,8 +216,10 @@ class HandState:
         side: 0 left, 1 right.
         mano_cam: MANO parameters in the camera frame.
         joints_cam: (21, 3) joints in the camera frame, metres, OpenPose order.
-        joints_2d: (21, 2) joints in image pixels.
-        box_xyxy: (4,) box in pixels (x0, y0, x1, y1).
+        joints_2d: (21, 2) joints in image pixels; for a lens with distortion, the pixels of the
+            image rectified to the pinhole camera with the same K (what the engine reads;
+            ``core.distortion.distort_pixels`` maps them into the raw image).
+        box_xyxy: (4,) box in pixels (x0, y0, x1, y1), in the same image as ``joints_2d``.
         confidence: presence score in [0, 1].
         mano_world: MANO parameters in the world frame, when the camera pose is known.
         joints_world: (21, 3) joints in the world frame, metres, when the camera pose is known.

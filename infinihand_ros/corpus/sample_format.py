@@ -3,6 +3,8 @@
 Layout of a sample directory (written atomically, version ``FORMAT_VERSION``)::
 
     meta.json                  format name and version, frame count, image size, sequence info
+                               (the generator's: ``distortion_model`` and ``distortion``, the
+                               images' lens, None and [] for a pinhole camera)
     rgb/000000.jpg ...         RGB frames (JPEG, quality 95)
     masks/000000.png ...       uint8 hand labels: 0 background, 1 left hand, 2 right hand
     depth/000000.png ...       uint16 depth in millimetres along the optical axis, 0 = nothing

@@ -104,10 +104,12 @@ def keyframe_input(frame_index: int, timestamp_ns: int, image: np.ndarray,
                    calibrated: bool = False) -> KeyframeInput:
     """Return what BA gets of a keyframe (its pose: the raw pose at metric ``scale``).
 
-    ``calibrated``: the intrinsics were given, not predicted (BA then holds the lens).
+    ``calibrated``: the intrinsics were given, not predicted (BA then holds the lens). The
+    image is the engine's rectified one, so BA gets the pinhole camera with the same K.
     """
-    return KeyframeInput(frame_index, timestamp_ns, image, depth_m, pose.matrix(), intrinsics,
-                         moving_mask(hands, intrinsics), scale, calibrated)
+    pinhole = intrinsics.pinhole()
+    return KeyframeInput(frame_index, timestamp_ns, image, depth_m, pose.matrix(), pinhole,
+                         moving_mask(hands, pinhole), scale, calibrated)
 
 
 def prune_corrections(track: PoseTrack, stamps_still_used: list[int]) -> None:

@@ -21,12 +21,21 @@ Every mode is one scale and one shift per axis (pixel centres at integers, as Op
 ``grid_sample(align_corners=False)``): ``model = scale * source + offset``. ``FrameMapping``
 carries it both ways for points, intrinsics and dense maps; pixels a crop cut away come back as
 NaN (or the ``fill`` asked for) when a model-size map is mapped to the source.
+
+Lens distortion is taken out before anything else looks at a frame: ``LensRectifier`` renders a
+frame whose intrinsics carry a distortion model as the pinhole camera with the same K and size
+(``cv2.remap``, bilinear, maps cached per lens and size), so the model, the tracker and the hand
+detector all see a pinhole image in which K projects a point where the lens put it in the
+original frame. Pixels the lens never saw are black.
 """
 
+from collections import OrderedDict
 from dataclasses import dataclass
+import threading
 
 import cv2
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.distortion import rectification_maps
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.model.config import AggregatorConfig
 from infinihand_ros.model.config import LETTERBOX
@@ -66,16 +75,18 @@ class FrameMapping:
     content_box: tuple[int, int, int, int]
 
     def intrinsics_to_model(self, intrinsics: Intrinsics) -> Intrinsics:
-        """Return the intrinsics of the model-input image."""
-        return Intrinsics(intrinsics.fx * self.scale_x, intrinsics.fy * self.scale_y,
-                          intrinsics.cx * self.scale_x + self.offset_x,
-                          intrinsics.cy * self.scale_y + self.offset_y, *self.model_size)
+        """Return the intrinsics of the model-input image (the lens distortion is kept)."""
+        return intrinsics.with_matrix(intrinsics.fx * self.scale_x, intrinsics.fy * self.scale_y,
+                                      intrinsics.cx * self.scale_x + self.offset_x,
+                                      intrinsics.cy * self.scale_y + self.offset_y,
+                                      *self.model_size)
 
     def intrinsics_to_source(self, intrinsics: Intrinsics) -> Intrinsics:
-        """Return the source-image intrinsics of model-input intrinsics."""
-        return Intrinsics(intrinsics.fx / self.scale_x, intrinsics.fy / self.scale_y,
-                          (intrinsics.cx - self.offset_x) / self.scale_x,
-                          (intrinsics.cy - self.offset_y) / self.scale_y, *self.source_size)
+        """Return the source-image intrinsics of model-input intrinsics (distortion kept)."""
+        return intrinsics.with_matrix(intrinsics.fx / self.scale_x, intrinsics.fy / self.scale_y,
+                                      (intrinsics.cx - self.offset_x) / self.scale_x,
+                                      (intrinsics.cy - self.offset_y) / self.scale_y,
+                                      *self.source_size)
 
     def points_to_source(self, points_model: np.ndarray) -> np.ndarray:
         """Map (..., 2) model-input pixels (x, y) to source pixels, float64."""
@@ -165,6 +176,63 @@ def check_intrinsics(intrinsics: Intrinsics | None, image: np.ndarray) -> Intrin
         raise InputError(f'intrinsics are for {intrinsics.width}x{intrinsics.height} px but the '
                          f'image is {width}x{height} px; send the matching CameraInfo')
     return intrinsics
+
+
+class LensRectifier:
+    """Renders distorted frames as pinhole images with the same K; thread-safe.
+
+    The remap tables of the ``capacity`` lenses used last are kept (keyed by the intrinsics,
+    which hold the image size).
+    """
+
+    def __init__(self, capacity: int = 4) -> None:
+        """Start with no table; keep at most ``capacity`` of them."""
+        self._capacity = capacity
+        self._maps: OrderedDict[Intrinsics, tuple[np.ndarray, np.ndarray]] = OrderedDict()
+        self._last: Intrinsics | None = None
+        self._lock = threading.Lock()
+
+    def rectify(self, image: np.ndarray, intrinsics: Intrinsics | None) -> np.ndarray:
+        """Return the (H, W, 3) uint8 image the pinhole camera with ``intrinsics``' K sees.
+
+        An image without intrinsics, or with a pinhole lens, comes back as it is (no copy).
+
+        Raises:
+            InputError: for a bad image or intrinsics of another size (``check_image``,
+                ``check_intrinsics``).
+
+        """
+        if intrinsics is None or not intrinsics.is_distorted:
+            with self._lock:
+                self._last = None
+            return image
+        check_intrinsics(intrinsics, check_image(image))
+        with self._lock:
+            maps = self._maps.get(intrinsics)
+            if maps is None:
+                maps = rectification_maps(intrinsics.matrix(), intrinsics.distortion_model,
+                                          intrinsics.distortion,
+                                          (intrinsics.width, intrinsics.height))
+                self._maps[intrinsics] = maps
+                while len(self._maps) > self._capacity:
+                    self._maps.popitem(last=False)
+            else:
+                self._maps.move_to_end(intrinsics)
+            self._last = intrinsics
+        return cv2.remap(image, maps[0], maps[1], cv2.INTER_LINEAR,
+                         borderMode=cv2.BORDER_CONSTANT, borderValue=(0, 0, 0))
+
+    def rectify_like_last(self, image: np.ndarray) -> np.ndarray:
+        """Rectify an image whose intrinsics are not known yet with the last frame's lens.
+
+        For reading an image ahead of its CameraInfo: a stream keeps its lens. The image comes
+        back as it is when the last frame was pinhole or of another size.
+        """
+        with self._lock:
+            last = self._last
+        if last is None or image.shape[:2] != (last.height, last.width):
+            return image
+        return self.rectify(image, last)
 
 
 def _check_mode(mode: str) -> None:

@@ -56,6 +56,7 @@ from infinihand_ros.engine.config import EngineConfig
 from infinihand_ros.engine.deferred_geometry import DeferredGeometry
 from infinihand_ros.engine.frame_input import check_image
 from infinihand_ros.engine.frame_input import check_intrinsics
+from infinihand_ros.engine.frame_input import LensRectifier
 from infinihand_ros.engine.hands.reader import HandReader
 from infinihand_ros.engine.hands.source import build_hand_source
 from infinihand_ros.engine.model_builder import build_model
@@ -144,6 +145,7 @@ class StreamingEngine:
             self._pass.geometry_only,
             lambda: (*geometry.aggregator.frame_blocks, *geometry.aggregator.global_blocks,
                      geometry.depth_head), self.config.geometry_lag)
+        self._rectifier = LensRectifier()  # distorted frames -> pinhole ones with the same K
         self._guard = threading.Lock()
         self._closed = False
         self._start_sequence()
@@ -224,7 +226,8 @@ class StreamingEngine:
             timestamp_ns: the image's stamp, integer nanoseconds, increasing; copied to its
                 result.
             intrinsics: the camera's intrinsics for this image size, or None to use the
-                model's predicted field of view.
+                model's predicted field of view; a lens with distortion is rectified to the
+                pinhole camera with the same K first (``frame_input.LensRectifier``).
 
         Raises:
             InputError: for a bad image, stamp or intrinsics, and for a stamp out of order
@@ -236,6 +239,7 @@ class StreamingEngine:
 
         """
         with self._exclusive():
+            image = self._rectifier.rectify(image, intrinsics)  # pinhole from here on
             frame = self._prepare(image, timestamp_ns, intrinsics)
             self._settle_owed(frame)  # the owed geometry where due (the gate still open)
             with self._deferred.holding():
@@ -260,7 +264,7 @@ class StreamingEngine:
         if not self.detects_ahead or self._closed:
             return False
         try:
-            image = check_image(image)
+            image = self._rectifier.rectify_like_last(check_image(image))
         except InputError:
             return False  # push reports it
         return self._reader.read_ahead(image, timestamp_ns, self._frames_pushed,

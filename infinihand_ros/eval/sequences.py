@@ -5,12 +5,15 @@ generator's ``samples/``; a generator output folder is accepted for its ``sample
 the training reader (``train.sequence_reader.open_sequence``); and a rosbag2 bag with the
 ground-truth topics (``core/topics.py``: ``/ground_truth/hands`` HandFrame messages, whose camera
 pose and intrinsics are the truth too), read with ``bag/``. Both give a ``GroundTruth`` of
-per-frame arrays (side axis [left, right]) and a frame iterator for the engine.
+per-frame arrays (side axis [left, right]) and a frame iterator for the engine. A sample
+directory's lens (``meta.json`` ``sequence.distortion_model`` and ``distortion``) and a bag's
+CameraInfo distortion go to the engine with the intrinsics.
 """
 
 from collections.abc import Callable
 from collections.abc import Iterator
 from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
 
 from infinihand_ros.bag.camera_stream import read_camera_frames
@@ -18,6 +21,7 @@ from infinihand_ros.bag.messages import msg_to_frame_result
 from infinihand_ros.bag.reader import BagReader
 from infinihand_ros.core import topics
 from infinihand_ros.core.datatypes import Intrinsics
+from infinihand_ros.core.distortion import check_distortion
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.geometry import axis_angle_to_matrix
 from infinihand_ros.core.hand_conventions import NUM_JOINTS
@@ -112,12 +116,16 @@ def _sample_sequence(root: Path, name: str) -> EvalSequence:
         raise InputError(f'{root / fmt.ANNOTATIONS_FILE}: no {exc} array; the evaluation needs '
                          'the full ground truth of the sample format') from exc
     width, height = reader.image_size
+    lens = fmt.read_meta(root).get('sequence') or {}
+    model, coefficients = check_distortion(lens.get('distortion_model'), lens.get('distortion'),
+                                           f'{root / fmt.META_FILE} sequence lens')
 
     def frames() -> Iterator[EngineFrame]:
         for index in range(reader.num_frames):
             K = truth.K[index]
+            intrinsics = Intrinsics.from_matrix(K, width, height)
             yield (reader.read_rgb(index), int(truth.timestamp_ns[index]),
-                   Intrinsics.from_matrix(K, width, height))
+                   replace(intrinsics, distortion_model=model, distortion=coefficients))
 
     return EvalSequence(name, root, width, height, truth, frames)
 

@@ -17,6 +17,7 @@ from geometry_msgs.msg import Quaternion
 from geometry_msgs.msg import Transform
 from geometry_msgs.msg import TransformStamped
 from geometry_msgs.msg import Vector3
+from infinihand_ros.bag.camera_msgs import camera_info_distortion
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.hand_conventions import JOINT_NAMES
 from infinihand_ros.core.output_fields import PoseFields
@@ -38,8 +39,6 @@ from visualization_msgs.msg import MarkerArray
 JOINT_NAMES_SEPARATOR = ','
 _MARKER_TYPES = {LINE_LIST: Marker.LINE_LIST, SPHERE_LIST: Marker.SPHERE_LIST,
                  LINE_STRIP: Marker.LINE_STRIP}
-_PLUMB_BOB = 'plumb_bob'
-_DISTORTION_COEFFICIENTS = 5
 
 
 def header(stamp_ns: int, frame_id: str) -> Header:
@@ -110,11 +109,12 @@ def marker_array_msg(stamp_ns: int, frame_id: str, specs: list[MarkerSpec]) -> M
 
 
 def camera_info_msg(stamp_ns: int, frame_id: str, intrinsics: Intrinsics) -> CameraInfo:
-    """Return the CameraInfo of undistorted pinhole intrinsics."""
+    """Return the CameraInfo of the intrinsics with their lens (pinhole: plumb_bob, zeros)."""
+    model, d = camera_info_distortion(intrinsics)
     k = intrinsics.matrix()
     return CameraInfo(header=header(stamp_ns, frame_id), width=intrinsics.width,
-                      height=intrinsics.height, distortion_model=_PLUMB_BOB,
-                      d=[0.0] * _DISTORTION_COEFFICIENTS, k=k.reshape(-1).tolist(),
+                      height=intrinsics.height, distortion_model=model, d=d,
+                      k=k.reshape(-1).tolist(),
                       r=np.eye(3).reshape(-1).tolist(),
                       p=np.hstack([k, np.zeros((3, 1))]).reshape(-1).tolist())
 

@@ -1,8 +1,8 @@
 """Command line: generate a synthetic sequence as a bag, training samples and preview PNGs.
 
 ``python -m infinihand_ros.synth --out DIR --seed S --frames N [--fps F --width W --height H
---hands both|left|right --format mcap|sqlite3 --compress --image-codec raw|jpeg|png]`` writes into
-DIR::
+--hands both|left|right --distortion MODEL:COEFFS --format mcap|sqlite3 --compress --image-codec
+raw|jpeg|png]`` writes into DIR::
 
     bag/                    rosbag2 bag (MCAP or sqlite3) with images and ground truth
     samples/                training samples (data/sample_format.py)
@@ -66,6 +66,12 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--width', type=int, help='image width in px (default 518)')
     parser.add_argument('--height', type=int, help='image height in px (default 378)')
     parser.add_argument('--hands', choices=sorted(HAND_CHOICES), help='hands shown (default both)')
+    parser.add_argument('--distortion', metavar='MODEL:COEFFS',
+                        help='render through this lens, as CameraInfo has it: '
+                        'plumb_bob:k1,k2,p1,p2,k3, rational_polynomial:k1,..,k6 (8 values) or '
+                        'equidistant:k1,k2,k3,k4, e.g. plumb_bob:-0.25,0.08,0,0,0 (default: '
+                        "none, a pinhole camera); the bag's CameraInfo and the ground truth "
+                        'carry it')
     parser.add_argument('--format', dest='storage', choices=sorted(STORAGE_PLUGINS),
                         help='bag storage (default mcap)')
     parser.add_argument('--compress', action='store_true', default=None,
@@ -99,7 +105,7 @@ def validate_args(args: argparse.Namespace) -> tuple[SynthConfig, BagOptions]:
     def overrides(keys: tuple[str, ...]) -> dict:
         return {key: getattr(args, key) for key in keys if getattr(args, key) is not None}
 
-    return (replace(config, **overrides(('fps', 'width', 'height', 'hands'))),
+    return (replace(config, **overrides(('fps', 'width', 'height', 'hands', 'distortion'))),
             replace(bag_options, **overrides(('storage', 'compress', 'image_codec'))))
 
 

@@ -5,6 +5,12 @@ seed, computes every hand joint once (batched forward kinematics of the built-in
 head (the camera) towards the hands in use and renders frames on demand. Ground truth uses the
 project's conventions: the world frame is the first camera's (OpenCV optical), poses are
 camera-to-world, joints are in OpenPose order, metres.
+
+With ``distortion`` set (``'MODEL:c1,c2,...'``, as ``bag_to_dataset --distortion``), the camera
+has that lens on the same drawn K: each frame is rendered pinhole on a larger canvas, warped into
+the distorted image (``synth.lens``) before noise and JPEG, and the ground truth's pixels
+(``joints_2d``, masks, boxes, depth) are the distorted image's; the intrinsics carry the lens.
+The same seed draws the same scene, motion and K with or without a lens.
 """
 
 from dataclasses import dataclass
@@ -15,6 +21,8 @@ from infinihand_ros.core import geometry
 from infinihand_ros.core.datatypes import CameraPose
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.datatypes import ManoParams
+from infinihand_ros.core.distortion import parse_distortion
+from infinihand_ros.core.distortion import project_points
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.hand_conventions import LEFT
 from infinihand_ros.core.hand_conventions import RIGHT
@@ -25,12 +33,15 @@ from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.synth import arms
 from infinihand_ros.synth import camera_motion
 from infinihand_ros.synth import hand_motion
+from infinihand_ros.synth.lens import lens_warp
 from infinihand_ros.synth.render import ArmGeometry
 from infinihand_ros.synth.render import Exposure
 from infinihand_ros.synth.render import HandGeometry
 from infinihand_ros.synth.render import render_frame
 from infinihand_ros.synth.render import RenderOptions
+from infinihand_ros.synth.render import RenderOutput
 from infinihand_ros.synth.scene import make_scene
+from infinihand_ros.synth.sensor import degrade
 import numpy as np
 import torch
 
@@ -55,6 +66,8 @@ class SynthConfig:
             camera's and the hands' motion over it (motion blur); 0: still images.
         min_visible_px: a hand with fewer visible pixels is marked not visible.
         jpeg_quality: JPEG compression of the rendered images (1-100, as a camera's); 0: none.
+        distortion: the lens, ``'MODEL:c1,c2,...'`` (``core.distortion.parse_distortion``,
+            e.g. ``'plumb_bob:-0.25,0.08,0,0,0'``); '' for a pinhole camera.
 
     """
 
@@ -66,8 +79,11 @@ class SynthConfig:
     exposure_s: float = 0.01
     min_visible_px: int = 40
     jpeg_quality: int = 90
+    distortion: str = ''
 
     def __post_init__(self) -> None:
+        if self.distortion:
+            parse_distortion(self.distortion, 'synth.distortion')
         if not 0.5 <= self.fps <= 120.0:
             raise InputError(f'fps must be within [0.5, 120], got {self.fps}')
         if not (32 <= self.width <= 4096 and 32 <= self.height <= 4096):
@@ -122,7 +138,7 @@ class SynthFrame:
         timestamp_ns: frame stamp (ns).
         rgb: (H, W, 3) uint8 image.
         depth: (H, W) float32 depth along the optical axis (m), +inf where empty.
-        intrinsics: pinhole intrinsics.
+        intrinsics: the camera's intrinsics (with the lens distortion, when set).
         camera_pose: ``T_world_cam`` with the world frame = the first camera.
         hands: one ``HandTruth`` per generated side, left first.
 
@@ -156,6 +172,11 @@ class SyntheticSequence:
         self.intrinsics = Intrinsics.from_matrix(
             camera_motion.sample_intrinsics(rng, config.width, config.height),
             config.width, config.height)
+        if config.distortion:
+            model, coefficients = parse_distortion(config.distortion, 'synth.distortion')
+            self.intrinsics = replace(self.intrinsics, distortion_model=model,
+                                      distortion=coefficients)
+        self._lens = lens_warp(self.intrinsics) if self.intrinsics.is_distorted else None
         betas, skin = hand_motion.sample_hand_appearance(rng)
         self.arm_style = arms.sample_arm_style(rng)
         self.tracks = tuple(
@@ -207,9 +228,21 @@ class SyntheticSequence:
             for t, j in zip(self.tracks, self.joints_scene)]
         # Noise depends on (seed, index) only, so any frame renders the same in any order.
         noise_seed = int(np.random.SeedSequence([self.seed, index]).generate_state(1)[0])
-        out = render_frame(self.scene, self.intrinsics.matrix(), T_scene_cam, self.config.width,
-                           self.config.height, geometries,
-                           replace(self._options, noise_seed=noise_seed), self._exposure(index))
+        options = replace(self._options, noise_seed=noise_seed)
+        if self._lens is None:
+            out = render_frame(self.scene, self.intrinsics.matrix(), T_scene_cam,
+                               self.config.width, self.config.height, geometries, options,
+                               self._exposure(index))
+        else:  # pinhole on the lens's canvas, warped, then the camera's noise and JPEG
+            canvas = render_frame(self.scene, self._lens.canvas_K, T_scene_cam,
+                                  *self._lens.canvas_size, geometries,
+                                  replace(options, noise_sigma=0.0, jpeg_quality=0),
+                                  self._exposure(index))
+            rgb = degrade(self._lens.warp_rgb(canvas.rgb), options.noise_sigma,
+                          options.noise_seed, options.jpeg_quality)
+            out = RenderOutput(rgb,
+                               self._lens.warp_depth(canvas.depth),
+                               self._lens.warp_masks(canvas.hand_masks))
         pose = self.camera_pose(index)
         hands = tuple(
             self._hand_truth(track, joints[index], index, pose, out.hand_masks[track.side])
@@ -254,8 +287,21 @@ class SyntheticSequence:
         visible = int(mask.sum()) >= self.config.min_visible_px
         return HandTruth(side=track.side, visible=visible, mano_cam=mano_cam,
                          mano_world=mano_world, joints_cam=joints_cam, joints_world=joints_world,
-                         joints_2d=geometry.project_points(joints_cam, self.intrinsics.matrix()),
+                         joints_2d=self._project(joints_cam),
                          mask=mask, box_xyxy=mask_box(mask) if visible else np.zeros(4))
+
+    def _project(self, points_cam: np.ndarray) -> np.ndarray:
+        """Project camera-frame points (N, 3) through the lens to pixels (N, 2).
+
+        Depth is floored at ``geometry.MIN_PROJECTION_DEPTH_M`` so points behind stay finite.
+        """
+        intrinsics = self.intrinsics
+        if intrinsics.distortion_model is None:
+            return geometry.project_points(points_cam, intrinsics.matrix())
+        floored = np.array(points_cam, dtype=np.float64)
+        floored[:, 2] = np.maximum(floored[:, 2], geometry.MIN_PROJECTION_DEPTH_M)
+        return project_points(floored, intrinsics.matrix(), intrinsics.distortion_model,
+                              intrinsics.distortion)
 
     def describe(self) -> dict:
         """Summary of the drawn sequence (for metadata files)."""
@@ -263,4 +309,6 @@ class SyntheticSequence:
         return {'seed': self.seed, 'frames': self.num_frames, 'fps': self.config.fps,
                 'width': self.config.width, 'height': self.config.height,
                 'hands': [SIDE_NAMES[t.side] for t in self.tracks],
-                'fov_deg': {'h': float(np.degrees(fov_h)), 'w': float(np.degrees(fov_w))}}
+                'fov_deg': {'h': float(np.degrees(fov_h)), 'w': float(np.degrees(fov_w))},
+                'distortion_model': self.intrinsics.distortion_model,
+                'distortion': list(self.intrinsics.distortion)}

@@ -1,8 +1,11 @@
 """Camera frames from bags: raw and compressed images, intrinsics paired, bad images skipped."""
 
+import dataclasses
 from pathlib import Path
 
 from infinihand_ros.bag.camera_stream import read_camera_frames
+from infinihand_ros.convert.bag_frames import read_bag_frames
+from infinihand_ros.convert.frame_log import FrameLog
 from infinihand_ros.core import topics
 from infinihand_ros.core.errors import BagError
 from infinihand_ros.synth.bag_sink import BagOptions
@@ -58,3 +61,22 @@ def test_undecodable_image_is_skipped(tmp_path: Path, caplog: pytest.LogCaptureF
 def test_bag_without_images(tmp_path: Path) -> None:
     with pytest.raises(BagError, match='no image topic'):
         list(read_camera_frames(sample_bag_path(), image_topic='/ground_truth/hands'))
+
+
+@pytest.mark.parametrize('model, coefficients', [
+    ('plumb_bob', (-0.25, 0.08, 0.001, -0.002, 0.01)),
+    ('rational_polynomial', (-0.2, 0.05, 0.001, 0.001, 0.01, 0.02, 0.01, 0.005)),
+    ('equidistant', (0.05, -0.01, 0.003, -0.001)),
+])
+def test_camera_info_distortion_is_read_from_a_bag(tmp_path: Path, model: str,
+                                                   coefficients: tuple) -> None:
+    """A bag's CameraInfo model and coefficients reach the frames, as the node's would."""
+    frames = list(SyntheticSequence(SynthConfig(width=64, height=48), seed=2, num_frames=2))
+    lens = dataclasses.replace(frames[0].intrinsics, distortion_model=model,
+                               distortion=coefficients)
+    with BagSink(tmp_path / 'bag') as sink:
+        for frame in frames:
+            sink.add(dataclasses.replace(frame, intrinsics=lens))
+    for read in (list(read_camera_frames(tmp_path / 'bag')),
+                 list(read_bag_frames(tmp_path / 'bag', None, FrameLog()))):
+        assert [f.intrinsics for f in read] == [lens, lens]

@@ -4,6 +4,7 @@ import dataclasses
 import errno
 import json
 from pathlib import Path
+import re
 import shutil
 
 import av
@@ -25,6 +26,7 @@ from infinihand_ros.convert.cli import main
 from infinihand_ros.convert.cli import REPORT_FILE
 from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.config import VideoSettings
+from infinihand_ros.convert.estimates_bag import CAMERA_INFO_TOPIC
 from infinihand_ros.convert.estimates_bag import HAND_FRAME_TOPIC
 from infinihand_ros.convert.estimates_bag import MARKERS_TOPIC
 from infinihand_ros.convert.lerobot_features import CAMERA_FLAG_NAMES
@@ -241,6 +243,29 @@ def test_video_input(tmp_path: Path) -> None:
     assert data['camera.intrinsics'][0] == [100, 100, 80, 60]
 
 
+def test_distorted_video_records_its_lens(tmp_path: Path) -> None:
+    """--intrinsics with --distortion: the episode record and the estimates bag carry the lens."""
+    video = tmp_path / 'clip.mp4'
+    writer = EpisodeVideoWriter(video, 10, VideoSettings())
+    for frame in rgb_frames(3):
+        writer.write(frame)
+    writer.close()
+    output = tmp_path / 'dataset'
+    flags = ('--intrinsics', f'100,100,80,60,{WIDTH},{HEIGHT}',
+             '--distortion', 'plumb_bob:-0.25,0.08,0,0,0.01')
+    assert _convert([video], output, tmp_path, *flags) == EXIT_OK
+    conversion = json.loads((output / 'meta/infinihand_conversion.json').read_text())
+    assert conversion['episodes'][0]['lens'] == {
+        'distortion_model': 'plumb_bob', 'distortion': [-0.25, 0.08, 0.0, 0.0, 0.01],
+        'frames_distorted': 3}
+    assert 'plumb_bob: -0.25, 0.08, 0, 0, 0.01' in (output / 'README.md').read_text()
+    with BagReader(output / 'estimates/episode_000000') as reader:
+        infos = [msg for _, _, msg in reader.messages([CAMERA_INFO_TOPIC])]
+    assert len(infos) == 3
+    assert infos[0].distortion_model == 'plumb_bob'
+    np.testing.assert_allclose(infos[0].d, [-0.25, 0.08, 0.0, 0.0, 0.01])
+
+
 @pytest.mark.slow
 def test_truncated_bag_fails_clearly_and_the_rest_converts(synth_bags: list[Path],
                                                            tmp_path: Path) -> None:
@@ -256,6 +281,23 @@ def test_truncated_bag_fails_clearly_and_the_rest_converts(synth_bags: list[Path
               if r['status'] == 'failed'}
     assert set(errors) == {'truncated'} and 'cannot be read' in errors['truncated']
     assert _read_dataset(output)[0]['total_episodes'] == 1
+
+
+@pytest.mark.parametrize('flags, message', [
+    (('--distortion', 'plumb_bob:0.1,0,0,0,0'), '--distortion .* needs --intrinsics'),
+    (('--intrinsics', '100,100,80,60,160,120', '--distortion', 'plumb_bob:0.1,0'),
+     '--distortion: the plumb_bob model takes 5 coefficients'),
+    (('--intrinsics', '100,100,80,60,160,120', '--distortion', 'fisheye:0.1,0,0,0'),
+     "--distortion: distortion model 'fisheye' is not supported"),
+    (('--intrinsics', '100,100,80,60,160,120', '--distortion', '0.1,0,0,0'),
+     'expected MODEL:c1,c2'),
+])
+def test_distortion_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture,
+                                 flags: tuple[str, ...], message: str) -> None:
+    """A lens without intrinsics, a wrong count or an unknown model exit 2 with one line."""
+    assert _convert([tmp_path], tmp_path / 'out', tmp_path, *flags) == EXIT_USAGE
+    err = capsys.readouterr().err
+    assert re.search(message, err), err
 
 
 def test_unwritable_output_is_a_usage_error(synth_bags: list[Path], tmp_path: Path,

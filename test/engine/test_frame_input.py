@@ -1,11 +1,14 @@
 """Frame checks give clear errors; every preprocessing mode keeps the geometry exact both ways."""
 
+import cv2
+from infinihand_ros.core import distortion
 from infinihand_ros.core import geometry
 from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.engine.frame_input import check_image
 from infinihand_ros.engine.frame_input import check_intrinsics
 from infinihand_ros.engine.frame_input import fit_image
+from infinihand_ros.engine.frame_input import LensRectifier
 from infinihand_ros.engine.frame_input import letterbox
 from infinihand_ros.engine.frame_input import model_size_for
 from infinihand_ros.model.config import AggregatorConfig
@@ -137,3 +140,42 @@ def test_bad_mode_map_size_and_aspect_are_refused() -> None:
         mapping.map_to_source(np.zeros((10, 10)))
     with pytest.raises(InputError, match='less than one 14-px patch'):
         model_size_for(4000, 100, 'resize_crop', TINY)
+
+
+@pytest.mark.parametrize('model, coefficients', [
+    ('plumb_bob', (-0.25, 0.08, 0.0, 0.0, 0.0)),
+    ('equidistant', (0.05, -0.01, 0.003, -0.001)),
+])
+def test_rectifier_puts_distorted_points_at_their_pinhole_pixels(model: str,
+                                                                 coefficients: tuple) -> None:
+    """Dots drawn where the lens projects points land where K alone projects them."""
+    lens = Intrinsics(300, 305, 161, 118, 320, 240, model, coefficients)
+    points = np.array([[0.3, -0.2, 1.0], [-0.35, 0.25, 1.2], [0.0, 0.0, 1.0]])
+    distorted = distortion.project_points(points, lens.matrix(), model, coefficients)
+    image = np.zeros((240, 320, 3), np.uint8)
+    for x, y in distorted:
+        cv2.circle(image, (int(round(x * 16)), int(round(y * 16))), 2 * 16, (255, 255, 255), -1,
+                   cv2.LINE_AA, 4)
+    rectifier = LensRectifier()
+    rectified = rectifier.rectify(image, lens)
+    pinhole = geometry.project_points(points, lens.matrix())
+    for x, y in pinhole:
+        window = rectified[int(y) - 6:int(y) + 7, int(x) - 6:int(x) + 7, 0].astype(float)
+        ys, xs = np.nonzero(window)
+        centre = (np.average(xs, weights=window[ys, xs]) + int(x) - 6,
+                  np.average(ys, weights=window[ys, xs]) + int(y) - 6)
+        np.testing.assert_allclose(centre, (x, y), atol=0.25)
+    assert rectifier.rectify_like_last(image).tobytes() == rectified.tobytes()
+
+
+def test_rectifier_leaves_pinhole_frames_alone() -> None:
+    """No intrinsics, a pinhole lens or zero coefficients: the same array back."""
+    image = np.zeros((240, 320, 3), np.uint8)
+    rectifier = LensRectifier()
+    for lens in (None, Intrinsics(300, 305, 161, 118, 320, 240),
+                 Intrinsics(300, 305, 161, 118, 320, 240, 'plumb_bob', (0.0,) * 5)):
+        assert rectifier.rectify(image, lens) is image
+    assert rectifier.rectify_like_last(image) is image
+    with pytest.raises(InputError, match='intrinsics are for 640x480 px but the image is 320x240'):
+        rectifier.rectify(image, Intrinsics(600, 600, 320, 240, 640, 480, 'plumb_bob',
+                                            (0.1, 0, 0, 0, 0)))

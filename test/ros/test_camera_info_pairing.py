@@ -85,3 +85,33 @@ def test_forget_after_drops_the_infos_ahead_of_a_restarted_stream() -> None:
     pairing.forget_after(1000 * MS)
     assert pairing.intrinsics_for(5000 * MS, 640, 480).source == FROM_MODEL
     assert pairing.intrinsics_for(1000 * MS, 640, 480).intrinsics.fx == 600.0
+
+
+def test_distortion_is_paired_with_the_intrinsics() -> None:
+    """distortion_model and d travel with K; an empty d is a pinhole camera."""
+    pairing = CameraInfoPairing(0, FallbackIntrinsics())
+    fisheye = info(0, 500.0)
+    fisheye.distortion_model, fisheye.d = 'equidistant', [0.05, -0.01, 0.003, -0.001]
+    pairing.add(fisheye)
+    got = pairing.intrinsics_for(0, 640, 480).intrinsics
+    assert (got.distortion_model, got.distortion) == ('equidistant', (0.05, -0.01, 0.003, -0.001))
+    uncalibrated = info(MS, 500.0)
+    uncalibrated.distortion_model, uncalibrated.d = 'plumb_bob', []
+    pairing.add(uncalibrated)
+    assert pairing.intrinsics_for(MS, 640, 480).intrinsics.distortion_model is None
+
+
+@pytest.mark.parametrize('model, d, match', [
+    ('kannala_brandt', [0.1] * 4, r"distortion model 'kannala_brandt' is not supported .*"
+                                  r'publish the rectified image'),
+    ('plumb_bob', [0.1, 0.0, 0.0], 'plumb_bob model takes 5 coefficients'),
+])
+def test_unusable_distortion_is_refused_by_name(model: str, d: list[float], match: str) -> None:
+    """An unknown model or a wrong count raises naming the stamp and what to do."""
+    message = info(7 * MS, 500.0)
+    message.distortion_model, message.d = model, d
+    pairing = CameraInfoPairing(0, FallbackIntrinsics())
+    with pytest.raises(InputError, match=match) as error:
+        pairing.add(message)
+    assert str(7 * MS) in str(error.value)
+    assert not pairing.has_infos

@@ -1,5 +1,7 @@
 """rclpy output messages from the plain output fields (ros/msg_builders.py)."""
 
+import dataclasses
+
 from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.output_fields import hand_output
 from infinihand_ros.core.output_fields import PoseFields
@@ -49,6 +51,11 @@ def test_path_markers_camera_info_names_and_diagnostics() -> None:
     info = msg_builders.camera_info_msg(STAMP, 'cam_optical', INTRINSICS)
     assert list(info.k) == [500.0, 0.0, 320.0, 0.0, 500.0, 240.0, 0.0, 0.0, 1.0]
     assert (info.width, info.height, info.p[2], info.p[3]) == (640, 480, 320.0, 0.0)
+    assert (info.distortion_model, list(info.d)) == ('plumb_bob', [0.0] * 5)
+    fisheye = dataclasses.replace(INTRINSICS, distortion_model='equidistant',
+                                  distortion=(0.05, -0.01, 0.003, -0.001))
+    info = msg_builders.camera_info_msg(STAMP, 'cam_optical', fisheye)
+    assert (info.distortion_model, list(info.d)) == ('equidistant', [0.05, -0.01, 0.003, -0.001])
     names = msg_builders.joint_names_msg().data.split(',')
     assert len(names) == 21 and names[0] == 'wrist' and names[20] == 'pinky_tip'
     report = DiagnosticReport(1, 'slow', (('input_rate_hz', '10.000'),))

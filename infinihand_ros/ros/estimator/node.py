@@ -123,9 +123,9 @@ class EstimatorNode(Node):
             self._image_topics[msg_type] = self.create_subscription(
                 msg_type, topic, self._on_image, copy.copy(qos_profile_sensor_data),
                 qos_overriding_options=overrides).topic_name
-        self.create_subscription(CameraInfo, 'camera_info', self._on_camera_info,
-                                 copy.copy(qos_profile_sensor_data),
-                                 qos_overriding_options=overrides)
+        self._camera_info_topic = self.create_subscription(
+            CameraInfo, 'camera_info', self._on_camera_info, copy.copy(qos_profile_sensor_data),
+            qos_overriding_options=overrides).topic_name
         self.create_timer(self.config.diagnostics.period_s, self._publish_diagnostics)
         self._worker = threading.Thread(target=self._run_inference, name='inference',
                                         daemon=True)
@@ -217,7 +217,8 @@ class EstimatorNode(Node):
                 self._pairing.add(msg)
                 self._pairing_lock.notify_all()
         except InputError as exc:
-            self._bad_frame(f'ignoring a CameraInfo: {exc}')
+            self._bad_frame(f'{self._camera_info_topic}: ignoring a CameraInfo (its images go '
+                            f'on with the fallback or predicted intrinsics): {exc}')
 
     def _bad_frame(self, text: str) -> None:
         """Count and log (throttled) a refused message."""
