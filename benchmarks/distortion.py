@@ -107,7 +107,7 @@ def evaluate(conditions: dict[str, list[Path]], args: argparse.Namespace) -> dic
     command = [sys.executable, '-m', 'infinihand_ros.eval', '--checkpoint', args.checkpoint,
                '--sequences', *paths, '--json']
     if args.mode is not None:
-        command += ['--mode', args.mode]
+        command += ['--set', f'mode={args.mode}']
     run = subprocess.run(command, check=True, capture_output=True, text=True)
     report = json.loads(run.stdout.strip().splitlines()[-1])
     by_name = {item['name']: item['ours'] for item in report['sequences']}

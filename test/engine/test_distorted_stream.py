@@ -2,7 +2,7 @@
 
 from dataclasses import replace
 
-from infinihand_ros.engine.config import load_engine_config
+from infinihand_ros.engine.settings import build_engine_config
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.synth.sequence import SynthConfig
 from infinihand_ros.synth.sequence import SyntheticSequence
@@ -17,7 +17,7 @@ NUM_FRAMES = 6
 @pytest.fixture(scope='module')
 def engine() -> StreamingEngine:
     """Yield an engine with the bundled model (trained on synthetic images), as in eval."""
-    with StreamingEngine(load_engine_config()) as engine:
+    with StreamingEngine(build_engine_config('synthetic')) as engine:
         yield engine
 
 
