@@ -200,8 +200,6 @@ def main(argv: list[str] | None = None) -> int:
         config, options = validate_args(args)
         engine_settings = engine_config_for(config)  # a bad --set is refused before any work
         writer = DatasetWriter(options.output, config)
-        save_engine_settings(engine_settings, options.output / SETTINGS_FILE,
-                             config.engine.profile, config.engine.overrides)
     except (UsageError, InfiniHandError) as exc:
         print(f'bag_to_dataset: error: {exc}', file=sys.stderr)
         return EXIT_USAGE
@@ -226,6 +224,8 @@ def main(argv: list[str] | None = None) -> int:
     except RayStartError as exc:  # nothing was converted
         print(f'bag_to_dataset: error: {exc}', file=sys.stderr)
         return EXIT_USAGE
+    save_engine_settings(engine_settings, options.output / SETTINGS_FILE, config.engine.profile,
+                         config.engine.overrides)  # beside the report, as the run ends
     _finish(reports, options.output)
     if interrupted:
         return EXIT_INTERRUPTED
