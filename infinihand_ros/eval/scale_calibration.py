@@ -25,8 +25,10 @@ from infinihand_ros.core.atomic_io import atomic_write_bytes
 from infinihand_ros.core.errors import InfiniHandError
 from infinihand_ros.corpus.sample_dataset import SampleDataset
 from infinihand_ros.engine.metric_scale import hand_depth_ratios
+from infinihand_ros.engine.settings import add_settings_arguments
 from infinihand_ros.engine.settings import build_engine_config
 from infinihand_ros.engine.settings import checkpoint_overrides
+from infinihand_ros.engine.settings import parse_overrides
 from infinihand_ros.engine.streaming_engine import StreamingEngine
 from infinihand_ros.eval.sequences import open_eval_sequence
 from infinihand_ros.model.io.bundled import CORRECTION_KEY
@@ -100,8 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument('--sequences', nargs='+', required=True, type=Path,
                         help='sample directories with true depth (training data, not held-out)')
     parser.add_argument('--checkpoint', help='checkpoint directory or bundled model name')
-    parser.add_argument('--engine-config', type=Path,
-                        help='engine settings file over the synthetic profile (default: none)')
+    add_settings_arguments(parser, 'synthetic')
     parser.add_argument('--every', type=int, default=5, help='measure every n-th frame')
     parser.add_argument('--write', type=Path,
                         help=f'write {SCALE_CALIBRATION_FILE} into this checkpoint directory')
@@ -116,9 +117,9 @@ def main(argv: list[str] | None = None) -> int:
         print('--every must be >= 1', file=sys.stderr)
         return 2
     try:
-        config = build_engine_config(
-            'synthetic', {} if args.checkpoint is None else checkpoint_overrides(args.checkpoint),
-            args.engine_config)
+        overrides = {} if args.checkpoint is None else checkpoint_overrides(args.checkpoint)
+        overrides.update(parse_overrides(args.overrides))
+        config = build_engine_config(args.profile, overrides, args.engine_config)
         # every frame a keyframe with its depth; the correction itself off (it is measured)
         config = dataclasses.replace(
             config, keyframe_interval=1, depth_maps=True, bundle_adjustment=None,
