@@ -180,7 +180,11 @@ def _merge(data: dict[str, Any], section: Mapping[str, Any]) -> None:
 
 
 def _apply(data: dict[str, Any], overrides: Mapping[str, Any], where: str) -> None:
-    """Set dotted keys in ``data`` (in order), resolving ``bundle_adjustment`` files."""
+    """Set dotted keys in ``data`` (in order), resolving ``bundle_adjustment`` files.
+
+    ``bundle_adjustment=true`` turns BA on with ``config/ba.yaml``, or keeps the settings it has
+    when it is on already.
+    """
     for key, value in overrides.items():
         *parents, name = key.split('.')
         node = data
@@ -194,6 +198,8 @@ def _apply(data: dict[str, Any], overrides: Mapping[str, Any], where: str) -> No
                                   'section of the engine settings')
             node = child
         if node is data and name == 'bundle_adjustment':
+            if value is True and isinstance(node.get(name), dict):
+                continue  # on already: its settings stand
             value = _resolved_ba({name: value}, f'{where}: {key}')[name]
         if isinstance(value, dict) and isinstance(node.get(name), dict):
             _merge(node[name], value)

@@ -68,12 +68,9 @@ def engine_config_for(config: EstimatorConfig) -> EngineConfig:
     if selection.config and not Path(selection.config).expanduser().is_file():
         raise ConfigError(f'engine.config: {selection.config!r} is not a file; give an engine '
                           "settings YAML or '' for none")
-    base = build_engine_config(selection.profile, {},
-                               Path(selection.config).expanduser() if selection.config else None)
     overrides = node_overrides(config)
-    if selection.bundle_adjustment == 'in_process':
-        if base.bundle_adjustment is None:
-            overrides['bundle_adjustment'] = True
+    if selection.bundle_adjustment == 'in_process':  # the file's or profile's BA, else ba.yaml
+        overrides['bundle_adjustment'] = True
         overrides['bundle_adjustment.worker.when_behind'] = LIVE_WHEN_BEHIND
     else:
         overrides['bundle_adjustment'] = None
