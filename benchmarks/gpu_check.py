@@ -8,8 +8,11 @@ it with ``--size tiny --device cpu`` and a few frames. Writes one JSON file (and
 
 1. ``stream``: the ``--size`` model (``config/model_<size>.yaml`` and the hand branch of that
    name) with seeded weights streams ``--frames`` synthetic frames (518 x 378, cycled from 40
-   rendered ones) in per-frame and in windowed mode; frames/s, push latency p95 after the
-   anchors and the peak memory (CUDA: ``max_memory_allocated``; CPU: the process's peak RSS).
+   rendered ones, stamped at 30 Hz) in per-frame and in windowed mode, and with the ``live``
+   profile (MediaPipe hands, the geometry interval paced to the 30 Hz stamps from measured
+   cost: the interval it chose and the costs are printed); frames/s, push latency p95 after
+   the anchors and the peak memory (CUDA: ``max_memory_allocated``; CPU: the process's peak
+   RSS).
    bf16 as the engine runs it: the aggregator under autocast (``autocast_bf16``) on CUDA,
    ``engine.cpu_precision: auto`` on the CPU.
 2. ``converted``: the same in per-frame mode with geometry weights in LingBot-Map's layout (the
@@ -138,6 +141,11 @@ def run_check(size: str, device: str, frames: int, folder: Path) -> dict:
     for mode in ('per_frame', 'windowed'):
         with StreamingEngine(replace(config, mode=mode), model) as engine:
             figures['stream'][mode] = _stream(engine, rendered, frames, torch_device)
+    live = build_engine_config('live')  # MediaPipe hands, the geometry interval paced
+    live = replace(live, device=device, model=model_selection, cpu_precision='auto')
+    with StreamingEngine(live, model) as engine:
+        figures['stream']['live'] = {**_stream(engine, rendered, frames, torch_device),
+                                     'pacing': engine.statistics['pacing']}
     checkpoint = _lingbot_map_checkpoint(model, folder)
     del model
     converted_dir = folder / 'converted'

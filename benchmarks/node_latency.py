@@ -1,30 +1,35 @@
 """Live estimator figures: output rate, latency and drops with a bag replayed at 10/30 Hz.
 
     python benchmarks/node_latency.py [--rates 10 30] [--ba none in_process node]
-        [--profiles default teleop] [--frames sample|real|real2] [--seconds S]
-        [--repeat N] [--json]
+        [--profiles default teleop] [--frames sample|real|real2|ego] [--seconds S]
+        [--repeat N] [--load none|busy|both] [--json]
 
-Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and
-``source scripts/env.sh``. For each profile, input rate and BA setting it starts the installed
-``estimator`` (with ``engine.bundle_adjustment`` none, in_process, or ``node`` plus the installed
-``bundle_adjustment`` node) on a private DDS domain, replays the frames (10 FPS; ``replay
---rate r/10``) and listens in this process to the replayed images and to ``~/camera_pose``.
-Profiles: ``default`` (the node's defaults), ``lag0`` (the defaults with the geometry branch's
-outputs taken in before the next frame, ``engine.set: geometry_lag=0``, so that it runs in the
-inference thread), ``lag1`` (taken in a frame late, before the second frame after it, instead of
-the node's two frames late: ``engine.set: geometry_lag=1``), ``every_frame`` (the defaults with the
-geometry branch on every frame, ``engine.set: geometry_interval=1``), ``teleop`` (``engine.profile:
-static``, a fixed camera, with the default MediaPipe hands: the teleoperation case; BA does not
-apply) and ``teleop_pair`` (the same with ``hands.search_interval: 1``: MediaPipe as it is, one
-graph following both hands, instead of one graph per hand side by side). Frames: ``sample``, the
-first ``--seconds`` of the sample bag (synthetic, 518x378 JPEG), ``real``, a 15 s crop video
-panning over a real hand photo from ``../shared/data/real_hands_stills`` (640x480 JPEG with exact
-CameraInfo; ``synth/photo_streams.py``), or ``real2``, the same video with the photo's half around
-the hand beside its mirror image (a real hand of each side in every frame: two-handed
-teleoperation; its CameraInfo is the photo's, as the composite is no single camera's image, which
-the timing does not depend on). Beside the node it times MediaPipe Hands alone (its video mode as
-it is, ``hands.search_interval: 1``) on the same decoded frames, one after another in this process,
-printed with the node's ratio to it.
+Needs the colcon install (``install/infinihand_ros/lib/infinihand_ros``) and ``source
+scripts/env.sh``. For each profile, input rate and BA setting it starts the installed ``estimator``
+(with ``engine.bundle_adjustment`` none, in_process, or ``node`` plus the installed
+``bundle_adjustment`` node) on a private DDS domain, replays the frames (10 FPS; ``replay --rate
+r/10``) and listens in this process to the replayed images and to ``~/camera_pose``. Profiles:
+``default`` (the node's defaults: the geometry interval paced from measured cost), ``interval3``
+(the defaults with a fixed interval of 3, ``engine.set: geometry_interval=3``), ``lag0`` (the
+defaults with the geometry branch's outputs taken in before the next frame, ``engine.set:
+geometry_lag=0``, so that it runs in the inference thread), ``lag1`` (taken in a frame late, before
+the second frame after it, instead of the node's two frames late: ``engine.set: geometry_lag=1``),
+``every_frame`` (the defaults with the geometry branch on every frame, ``engine.set:
+geometry_interval=1``), ``teleop`` (``engine.profile: static``, a fixed camera, with the default
+MediaPipe hands: the teleoperation case; BA does not apply) and ``teleop_pair`` (the same with
+``hands.search_interval: 1``: MediaPipe as it is, one graph following both hands, instead of one
+graph per hand side by side). Frames: ``sample``, the first ``--seconds`` of the sample bag
+(synthetic, 518x378 JPEG), ``real``, a 15 s crop video panning over a real hand photo from
+``../shared/data/real_hands_stills`` (640x480 JPEG with exact CameraInfo;
+``synth/photo_streams.py``), or ``real2``, the same video with the photo's half around the hand
+beside its mirror image (a real hand of each side in every frame: two-handed teleoperation; its
+CameraInfo is the photo's, as the composite is no single camera's image, which the timing does not
+depend on), or ``ego``, a real head-mounted clip (``ego4d_stove`` of ``../shared/data/real_ego``,
+two hands stirring) played forwards and backwards for 200 frames, scaled to 640 px wide, stamped at
+10 Hz, without CameraInfo. ``--load busy`` keeps one core busy with another process during each run
+(``both``: each run idle, then busy). Beside the node it times MediaPipe Hands alone (its video
+mode as it is, ``hands.search_interval: 1``) on the same decoded frames, one after another in this
+process, printed with the node's ratio to it.
 
 Latency is measured as receive time minus the replay's publish time, on this machine's
 monotonic clock: the time this process receives an output minus the time it received the image
@@ -42,6 +47,8 @@ restart): figures over a long run, where the start-up weighs less.
 """
 
 import argparse
+from collections.abc import Iterator
+import contextlib
 from dataclasses import asdict
 from dataclasses import dataclass
 from dataclasses import replace
@@ -50,6 +57,7 @@ import os
 from pathlib import Path
 import signal
 import subprocess
+import sys
 import tempfile
 import threading
 import time
@@ -72,6 +80,7 @@ from infinihand_ros.engine.hands.mediapipe_detector import MediaPipeDetector
 from infinihand_ros.ros.node_process import use_package_dds_profile
 from infinihand_ros.synth.photo_streams import crop_stream
 import numpy as np
+from PIL import Image
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import qos_profile_sensor_data
@@ -89,7 +98,8 @@ INFO_TOPIC = '/camera/camera_info'
 POSE_TOPIC = '/infinihand_estimator/camera_pose'
 REMAPS = ['-r', f'image/compressed:={IMAGE_TOPIC}', '-r', f'camera_info:={INFO_TOPIC}']
 #: Node parameters of each profile.
-PROFILES = {'default': [], 'lag0': ['-p', "engine.set:='geometry_lag=0'"],
+PROFILES = {'default': [], 'interval3': ['-p', "engine.set:='geometry_interval=3'"],
+            'lag0': ['-p', "engine.set:='geometry_lag=0'"],
             'lag1': ['-p', "engine.set:='geometry_lag=1'"],
             'every_frame': ['-p', "engine.set:='geometry_interval=1 geometry_lag=0'"],
             'teleop': ['-p', 'engine.profile:=teleop'],
@@ -103,6 +113,11 @@ MS_PER_S = 1e3
 #: Outputs of images this soon after the first one are the start-up (anchor frames held back,
 #: metric-scale warm-up, first palm search); the steady-state figures leave them out.
 START_UP_S = 2.0
+EGO_CLIP = ROOT.parent / 'shared' / 'data' / 'real_ego' / 'ego4d_stove'
+EGO_FRAMES = 200
+EGO_WIDTH = 640
+#: Whether another process keeps a core busy, per ``--load``.
+LOADS = {'none': (False,), 'busy': (True,), 'both': (False, True)}
 
 
 @dataclass(frozen=True)
@@ -126,6 +141,8 @@ class RunFigures:
     frames_dropped: int
     not_received: int
     ba_results_applied: int
+    load: str = 'idle'
+    pacing: str = ''
 
 
 def parse_args() -> argparse.Namespace:
@@ -146,9 +163,13 @@ def parse_args() -> argparse.Namespace:
                         'a fixed camera (engine.profile teleop) with MediaPipe hands; '
                         'teleop_pair: the same with MediaPipe as it is, one graph for both '
                         'hands (hands.search_interval 1)')
-    parser.add_argument('--frames', choices=('sample', 'real', 'real2'), default='sample',
+    parser.add_argument('--frames', choices=('sample', 'real', 'real2', 'ego'), default='sample',
                         help='sample: the sample bag; real: a crop video of a real hand photo; '
-                        'real2: the same with the photo beside its mirror image (two hands)')
+                        'real2: the same with the photo beside its mirror image (two hands); '
+                        'ego: a real head-mounted clip played forwards and backwards')
+    parser.add_argument('--load', choices=('none', 'busy', 'both'), default='none',
+                        help='busy: another process keeps one core busy during each run; '
+                        'both: each run idle, then busy')
     parser.add_argument('--seconds', type=float, default=0.0,
                         help='replay only the first S seconds of the bag (0: all of it)')
     parser.add_argument('--repeat', type=int, default=1,
@@ -274,7 +295,11 @@ def figures(profile: str, rate_hz: float, ba: str, images: int, listener: Listen
                       float(values.get('processing_p50_ms', 'nan')),
                       float(values.get('processing_p95_ms', 'nan')), received,
                       int(values.get('frames_dropped', 0)), images - received,
-                      int(values.get('ba_results_applied', 0)))
+                      int(values.get('ba_results_applied', 0)),
+                      pacing=(f"geometry every {values.get('geometry_interval', '?')} "
+                              f"(frame {values.get('frame_ms', 'nan')} ms, geometry "
+                              f"{values.get('geometry_ms', 'nan')} ms, "
+                              f"utilisation {values.get('utilisation', 'nan')})"))
 
 
 def repeat_segment(source: Path, out: Path, times: int) -> int:
@@ -385,6 +410,44 @@ def mediapipe_alone(segment: Path) -> MediaPipeFigures:
                             found)
 
 
+def write_ego_segment(out: Path) -> int:
+    """Write ``EGO_FRAMES`` frames of a real head-mounted clip, forwards and backwards, to ``out``.
+
+    The clip's JPEG frames (``../shared/data/real_ego``) are scaled to 640 px wide and stamped at
+    10 Hz, with no CameraInfo (the node predicts the lens, as for a camera without one).
+    """
+    files = sorted((EGO_CLIP / 'frames').glob('*.jpg'))
+    if not files:
+        raise RuntimeError(f'no frames in {EGO_CLIP / "frames"} (../shared/data is absent)')
+    order = files + files[-2:0:-1]
+    store = build_typestore()
+    with Writer(out, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        image_topic = writer.add_connection(IMAGE_TOPIC, COMPRESSED_IMAGE_MSG, typestore=store)
+        for index in range(EGO_FRAMES):
+            rgb = np.asarray(Image.open(order[index % len(order)]).convert('RGB'))
+            height = round(rgb.shape[0] * EGO_WIDTH / rgb.shape[1])
+            rgb = np.asarray(Image.fromarray(rgb).resize((EGO_WIDTH, height), Image.BILINEAR))
+            stamp = NS_PER_S + int(index * NS_PER_S / BAG_FPS)
+            image = image_to_compressed_msg(store, rgb, stamp, CAMERA_FRAME_ID, 'jpeg',
+                                            JPEG_QUALITY)
+            writer.write(image_topic, stamp, store.serialize_cdr(image, COMPRESSED_IMAGE_MSG))
+    return EGO_FRAMES
+
+
+@contextlib.contextmanager
+def cpu_load(busy: bool) -> Iterator[None]:
+    """Keep one core busy with another process while inside (``busy``), else nothing."""
+    if not busy:
+        yield
+        return
+    spinner = subprocess.Popen([sys.executable, '-c', 'while True: pass'])
+    try:
+        yield
+    finally:
+        spinner.kill()
+        spinner.wait()
+
+
 def run_once(profile: str, rate_hz: float, ba: str, segment: Path, images: int,
              work: Path) -> RunFigures:
     """Start the nodes, replay the segment at ``rate_hz``, return the figures."""
@@ -420,7 +483,8 @@ def _print(result: RunFigures, alone: MediaPipeFigures, as_json: bool) -> None:
         print(json.dumps({**asdict(result), 'output_rate_to_mediapipe_fps': rate_ratio,
                           'latency_p95_to_mediapipe_p95': latency_ratio}), flush=True)
         return
-    print(f'{result.profile:7s} {result.rate_hz:5.1f} Hz in, BA {result.bundle_adjustment:4s}: '
+    print(f'{result.profile:7s} {result.rate_hz:5.1f} Hz in, BA {result.bundle_adjustment:4s}, '
+          f'{result.load}: '
           f'{result.outputs}/{result.images} frames out '
           f'({100.0 * result.outputs / result.images:.0f} %) at {result.output_rate_hz:.1f} Hz '
           f'({rate_ratio:.2f}x MediaPipe alone), latency p50 {result.latency_p50_ms:.0f} ms '
@@ -430,7 +494,7 @@ def _print(result: RunFigures, alone: MediaPipeFigures, as_json: bool) -> None:
           f'processing p50 {result.processing_p50_ms:.0f} p95 {result.processing_p95_ms:.0f} '
           f'ms), dropped '
           f'{result.frames_dropped}, not received {result.not_received}, BA results '
-          f'{result.ba_results_applied}', flush=True)
+          f'{result.ba_results_applied}; {result.pacing}', flush=True)
 
 
 def main() -> None:
@@ -445,8 +509,12 @@ def main() -> None:
         with tempfile.TemporaryDirectory(prefix='node_latency_') as tmp:
             work = Path(tmp)
             frames = work / 'frames'
-            images = (write_segment(args.seconds, frames) if args.frames == 'sample'
-                      else write_real_segment(frames, two_hands=args.frames == 'real2'))
+            if args.frames == 'sample':
+                images = write_segment(args.seconds, frames)
+            elif args.frames == 'ego':
+                images = write_ego_segment(frames)
+            else:
+                images = write_real_segment(frames, two_hands=args.frames == 'real2')
             alone = mediapipe_alone(frames)
             segment = frames
             if args.repeat > 1:
@@ -459,8 +527,11 @@ def main() -> None:
             for profile in args.profiles:
                 for ba in (['none'] if profile.startswith('teleop') else args.ba):
                     for rate in args.rates:
-                        result = run_once(profile, rate, ba, segment, images, work)
-                        _print(result, alone, args.json)
+                        for busy in LOADS[args.load]:
+                            with cpu_load(busy):
+                                result = run_once(profile, rate, ba, segment, images, work)
+                            _print(replace(result, load='busy core' if busy else 'idle'),
+                                   alone, args.json)
     finally:
         rclpy.try_shutdown()
 

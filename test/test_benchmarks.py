@@ -73,7 +73,8 @@ def test_gpu_check_runs_on_the_tiny_model_on_the_cpu(tmp_path: Path) -> None:
                          capture_output=True, text=True, timeout=900)
     assert run.returncode == 0, run.stderr
     figures = json.loads(out.read_text())
-    assert set(figures['stream']) == {'per_frame', 'windowed'}
+    assert set(figures['stream']) == {'per_frame', 'windowed', 'live'}
+    assert figures['stream']['live']['pacing']['paced']
     for stream in (*figures['stream'].values(), figures['converted']):
         assert stream['frames'] == 3 and stream['fps'] > 0 and stream['peak_memory_mib'] > 0
     assert figures['converted']['matched_tensors'] > 0

@@ -1,11 +1,15 @@
 """The demo (``make demo``) reproduces the embedded sample bag and evaluates the bundled model."""
 
 from pathlib import Path
+import re
 
 from infinihand_ros import demo
 from infinihand_ros.eval.prediction_files import read_predictions
 from infinihand_ros.synth import cli
 import pytest
+
+#: Images of the 150 replayed the live node must receive (a few may be lost under load).
+MIN_RECEIVED = 140
 
 
 @pytest.mark.slow
@@ -30,7 +34,11 @@ def test_demo_regenerates_the_sample_bag_and_evaluates(tmp_path: Path,
     assert (evaluated / 'sample_bag_top_view.png').stat().st_size > 0
     # The live path: replay -> estimator node -> record, evaluated the same way.
     assert 'Live estimator (bundle adjustment none' in report
-    assert '150 images replayed at 10 Hz' in report and '(150 received)' in report
+    assert '150 images replayed at 10 Hz' in report
+    # Best-effort images (sensor-data QoS) can be lost in transport on a busy machine; the
+    # report counts them. Nearly all must arrive.
+    received = int(re.search(r'\((\d+) received\)', report).group(1))
+    assert MIN_RECEIVED <= received <= 150, report
     assert report.count('**World space**') == 2
     side_by_side = report[report.index('Offline and live side by side:'):]
     for row in ('| offline: engine + BA, final trajectory | ',

@@ -275,6 +275,9 @@ class FrameResult:
             raised, the BA process died) or was rejected by its held-out check, so its pose
             lacks that refinement; set on the final trajectory (``StreamingEngine.refined``),
             False on live results.
+        provisional_intrinsics: ``intrinsics`` is a provisional lens (a fixed camera's, while
+            its lens is still being estimated beside the stream): hands placed with it are
+            less certain.
 
     """
 
@@ -291,6 +294,7 @@ class FrameResult:
     hand_source: str = 'infinihand'
     tracking: str = 'predicted'
     ba_failed: bool = False
+    provisional_intrinsics: bool = False
 
     def __post_init__(self) -> None:
         sides = [hand.side for hand in self.hands]

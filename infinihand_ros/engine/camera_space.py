@@ -44,6 +44,8 @@ class PreparedFrame:
         detections: the hand source's detection in the source image, started when the frame
             was pushed (``HandSource.detect`` in the engine's detection thread, beside the
             model), or None when the source reads no image; ``found()`` waits for it.
+        provisional_lens: ``intrinsics`` is a fixed camera's provisional lens (still being
+            estimated beside the stream: ``engine/lens_warmup.py``).
 
     """
 
@@ -55,6 +57,7 @@ class PreparedFrame:
     keyframe: bool
     source_image: np.ndarray | None = None
     detections: Future | None = None
+    provisional_lens: bool = False
 
     def found(self) -> FrameDetections:
         """Return what the hand source found in the frame (waits for it; empty without one)."""

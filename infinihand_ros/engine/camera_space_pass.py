@@ -116,6 +116,11 @@ class CameraSpacePass:
         """
         image = check_image(image)
         intrinsics = check_intrinsics(intrinsics, image) or self._lens.fixed
+        provisional = False
+        if intrinsics is None and not self.pending:
+            estimated = self._lens.static_lens(image)  # a fixed camera's, beside the stream
+            if estimated is not None:
+                intrinsics, provisional = estimated
         size = (image.shape[1], image.shape[0])
         if self._source_size not in (None, size):
             raise InputError(f"image: {size[0]}x{size[1]} px, but this stream's frames are "
@@ -130,7 +135,7 @@ class CameraSpacePass:
         detections = (None if self._reader is None
                       else self._reader.read(image, timestamp_ns, index))
         return PreparedFrame(index, timestamp_ns, pixels, mapping, intrinsics, keyframe, None,
-                             detections)
+                             detections, provisional)
 
     def _skips_geometry(self, intrinsics: Intrinsics | None) -> bool:
         """Return whether a frame with these given intrinsics goes on without the model.
@@ -184,6 +189,17 @@ class CameraSpacePass:
             future = self._decoder.submit(self._hands, images, geometry, poses, used, frames)
         self._decoding.append(future)
         return frames
+
+    def predict_intrinsics(self, image: np.ndarray) -> Intrinsics:
+        """Return the model's intrinsics of one image on its own (a fresh stream), its pixels."""
+        pixels, mapping = self._fit(image)
+        with torch.inference_mode():
+            _, _, used = self.model.run_geometry(
+                pixels[None, None], self.model.new_stream(), [True], None, None,
+                self._detection, self._cpu_bf16, masks=False, depth=False)
+        height, width = pixels.shape[-2:]
+        return mapping.intrinsics_to_source(
+            Intrinsics.from_matrix(used[0, 0].double().cpu().numpy(), width, height))
 
     def geometry_only(self, frame: PreparedFrame) -> CameraSpaceFrame:
         """Run the geometry branch alone on a frame answered first; return its record.

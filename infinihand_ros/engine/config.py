@@ -21,6 +21,7 @@ from infinihand_ros.engine.camera_tracker import TrackerConfig
 from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.metric_scale import MetricScaleConfig
 from infinihand_ros.engine.output.config import OutputConfig
+from infinihand_ros.engine.pacing import PacingConfig
 from infinihand_ros.engine.pose_track import PoseTrackConfig
 from infinihand_ros.mano.hand_model import HandModelConfig
 import torch
@@ -28,6 +29,7 @@ import torch
 ENGINE_SECTION: Final = 'engine'
 MODES: Final = ('per_frame', 'windowed')
 CAMERA_MOTIONS: Final = ('estimate', 'static')
+LENS_WARMUPS: Final = ('beside', 'first')
 CPU_PRECISIONS: Final = ('auto', 'fp32')
 
 
@@ -140,15 +142,18 @@ class EngineConfig:
             after the anchors (and on any frame whose tracker needs depth: a new reference, a
             restart); the frames between are tracked from the image alone with the last
             intrinsics. Without BA, a frame whose tracker holds the camera is answered before
-            its geometry branch runs (``StreamingEngine.catch_up``). 1: every frame, geometry
-            first (the reference path).
+            its geometry branch runs (``StreamingEngine.catch_up``). 'auto': chosen as the
+            stream runs from what a frame and the geometry branch cost on this machine, so that
+            frames at the input's rate are answered within ``pacing.utilisation`` of the frame
+            period (``engine/pacing.py``); 1: every frame, geometry first (the reference path).
         geometry_lag: for such a frame answered first, 0: the pose track takes its geometry
             branch's outputs before the next frame (``catch_up`` runs it in the caller's
             thread); n >= 1: n frames later (the n frames after it are tracked from the image
             too), so a live caller's ``catch_up`` runs it in a worker thread, paused while a
             frame is pushed, and the next frames' answers do not wait for it (lower latency;
             slightly less exact tracking, as a new tracker reference comes n frames later).
-            Below ``geometry_interval`` (when that is above 1).
+            Held below the geometry interval (when that is above 1).
+        pacing: how ``geometry_interval: auto`` chooses the interval.
         device: torch device ('cpu', 'cuda', 'cuda:1', ...), checked at load.
         cpu_precision: on the CPU, 'auto' runs the aggregator in bf16 where the CPU computes
             bf16 natively (AVX512-BF16 or AMX, checked at start-up; float32 elsewhere); 'fp32'
@@ -169,9 +174,15 @@ class EngineConfig:
             the depth head runs only where a depth is used.
         lens_frames: one lens per stream, with hands found outside the model and no given
             intrinsics: a moving camera holds the median of the intrinsics the model predicted
-            on its first block (the anchor frames); a fixed camera the median over its first
-            this-many frames, and runs the geometry branch on those only (it has nothing else
-            to give it); 0: intrinsics predicted on every frame (a zoom lens).
+            on its first block (the anchor frames); a fixed camera the median of this many
+            frames' predictions (``lens_warmup``), and runs the geometry branch on those only
+            (it has nothing else to give it); 0: intrinsics predicted on every frame (a zoom
+            lens).
+        lens_warmup: a fixed camera's lens (``lens_frames``): 'beside' (live): its frames
+            go out at once, with a provisional lens (flagged ``provisional_intrinsics``) until
+            the predictions made beside the stream settle it; 'first' (offline, results
+            independent of timing): its first ``lens_frames`` frames are predicted in turn,
+            each given the median so far (flagged too).
         restart_after_s: a frame stamped more than this before the last accepted one starts
             a new stream in ``push`` (a replay looping, a camera restarting, normal stamps
             after a far-future one: the engine resets and the world frame restarts at it); one
@@ -183,8 +194,9 @@ class EngineConfig:
     mode: str = 'per_frame'
     window: int = 16
     keyframe_interval: int = 1
-    geometry_interval: int = 3
+    geometry_interval: int | str = 'auto'
     geometry_lag: int = 2
+    pacing: PacingConfig = field(default_factory=PacingConfig)
     device: str = 'cpu'
     cpu_precision: str = 'auto'
     model: ModelSelection = field(default_factory=ModelSelection)
@@ -198,6 +210,7 @@ class EngineConfig:
     hands: HandsConfig = field(default_factory=HandsConfig)
     depth_maps: bool = False
     lens_frames: int = 16
+    lens_warmup: str = 'beside'
     restart_after_s: float = 1.0
 
     def __post_init__(self) -> None:
@@ -206,16 +219,24 @@ class EngineConfig:
         if self.cpu_precision not in CPU_PRECISIONS:
             raise ConfigError(f'engine.cpu_precision must be one of {list(CPU_PRECISIONS)}, '
                               f'got {self.cpu_precision!r}')
+        if self.lens_warmup not in LENS_WARMUPS:
+            raise ConfigError(f'engine.lens_warmup must be one of {list(LENS_WARMUPS)}, got '
+                              f'{self.lens_warmup!r}')
         if self.camera_motion not in CAMERA_MOTIONS:
             raise ConfigError(f'engine.camera_motion must be one of {list(CAMERA_MOTIONS)}, '
                               f'got {self.camera_motion!r}')
         require_at_least('engine', 1, window=self.window,
-                         keyframe_interval=self.keyframe_interval,
-                         geometry_interval=self.geometry_interval)
+                         keyframe_interval=self.keyframe_interval)
+        if self.geometry_interval != 'auto':
+            if isinstance(self.geometry_interval, str):
+                raise ConfigError(f"engine.geometry_interval must be 'auto' or a number of "
+                                  f'frames >= 1, got {self.geometry_interval!r}')
+            require_at_least('engine', 1, geometry_interval=self.geometry_interval)
         require_at_least('engine', 0, lens_frames=self.lens_frames)
         require_at_least('engine', 0, geometry_lag=self.geometry_lag)
         require_at_least('engine', 0.0, restart_after_s=self.restart_after_s)
-        if self.geometry_interval > 1 and self.geometry_lag >= self.geometry_interval:
+        if (self.geometry_interval != 'auto' and self.geometry_interval > 1
+                and self.geometry_lag >= self.geometry_interval):
             raise ConfigError(f'engine.geometry_lag ({self.geometry_lag}) must be below '
                               f'engine.geometry_interval ({self.geometry_interval}): set it to '
                               f'{self.geometry_interval - 1} or less (the outputs of a '

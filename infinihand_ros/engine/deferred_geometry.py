@@ -23,6 +23,7 @@ from concurrent.futures import ThreadPoolExecutor
 import contextlib
 import dataclasses
 import threading
+import time
 
 from infinihand_ros.core.errors import ModelOutputError
 from infinihand_ros.engine.camera_space import CameraSpaceFrame
@@ -55,6 +56,7 @@ class WorkerGate:
         self._condition = threading.Condition()
         self._callers = 0
         self.worker: int | None = None  # the worker thread's ident
+        self.waited_s = 0.0  # seconds the worker has waited here, in all
 
     @contextlib.contextmanager
     def closed(self) -> Iterator[None]:
@@ -72,15 +74,18 @@ class WorkerGate:
         """Wait here, in the worker thread, until no caller is inside (a forward pre-hook)."""
         if threading.get_ident() != self.worker:
             return
+        start = time.perf_counter()
         with self._condition:
             self._condition.wait_for(lambda: self._callers == 0)
+        self.waited_s += time.perf_counter() - start
 
 
 class DeferredGeometry:
     """At most one frame's owed geometry branch: when it is due, where it runs, its outcome."""
 
     def __init__(self, run: Callable[[PreparedFrame], CameraSpaceFrame],
-                 boundaries: Callable[[], Sequence[torch.nn.Module]], lag: int) -> None:
+                 boundaries: Callable[[], Sequence[torch.nn.Module]], lag: int,
+                 cost: Callable[[float], None]) -> None:
         """Keep how the geometry branch runs; nothing is owed yet.
 
         Args:
@@ -89,12 +94,14 @@ class DeferredGeometry:
             boundaries: the modules at whose start the worker thread waits while a frame is
                 being pushed (hooked when the worker first starts).
             lag: ``geometry_lag``: the owed outputs are taken in before the (lag + 1)-th frame
-                after the owed one at the latest.
+                after the owed one at the latest (``lag``: changed by a paced engine).
+            cost: told the seconds each run took, time paused at a boundary left out.
 
         """
         self._run = run
         self._boundaries = boundaries
-        self._lag = lag
+        self._cost = cost
+        self.lag = lag
         self._gate = WorkerGate()
         self._hooks: list[torch.utils.hooks.RemovableHandle] = []
         self._worker: ThreadPoolExecutor | None = None  # created by the first ``start``
@@ -128,7 +135,7 @@ class DeferredGeometry:
 
     def late(self, index: int) -> bool:
         """Return whether frame ``index`` comes more than ``geometry_lag`` after the owed one."""
-        return index - self._owed.record.frame.index > self._lag
+        return index - self._owed.record.frame.index > self.lag
 
     @property
     def startable(self) -> bool:
@@ -196,7 +203,9 @@ class DeferredGeometry:
         """
         if in_worker:
             self._gate.worker = threading.get_ident()
+        start, waited = time.perf_counter(), self._gate.waited_s
         record = self._run(owed.record.frame)
         if in_worker and (owed.record.hands or owed.moment.needs_depth):
             record.depth.model()
+        self._cost(time.perf_counter() - start - (self._gate.waited_s - waited))
         return record

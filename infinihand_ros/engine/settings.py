@@ -43,7 +43,7 @@ OFFLINE_BA: Final[dict[str, Any]] = {'bundle_adjustment': True,
 PROFILES: Final[dict[str, dict[str, Any]]] = {
     'live': {},
     'teleop': {'camera_motion': 'static'},
-    'offline': {'mode': 'windowed', **OFFLINE_BA},
+    'offline': {'mode': 'windowed', 'lens_warmup': 'first', **OFFLINE_BA},
     'synthetic': {'hands.source': 'infinihand'},
 }
 PROFILE_HELP: Final = {

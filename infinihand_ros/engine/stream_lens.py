@@ -3,14 +3,17 @@
 With hands found outside the model and no given intrinsics, a moving camera holds the median of
 the intrinsics the model predicted on its first block (the anchor frames), and the frames after
 it are given that lens: a pose is never re-measured through another focal length (a still
-camera would seem to move). A fixed camera holds the median over its first ``lens_frames``
-frames, after which its frames need no model at all. ``lens_frames`` 0, the paper's hand branch,
-or given intrinsics: nothing is held (intrinsics predicted on every frame).
+camera would seem to move). A fixed camera's frames need no model at all: its lens is the median
+of ``lens_frames`` predictions made beside the stream (``engine/lens_warmup.py``), and its first
+frames go out with a provisional one meanwhile. ``lens_frames`` 0, the paper's hand branch, or
+given intrinsics: nothing is held (intrinsics predicted on every frame).
 """
 
+from collections.abc import Callable
+
 from infinihand_ros.core.datatypes import Intrinsics
-from infinihand_ros.engine.camera_space import CameraSpaceFrame
 from infinihand_ros.engine.camera_space import PreparedFrame
+from infinihand_ros.engine.lens_warmup import LensWarmup
 import numpy as np
 import torch
 
@@ -18,25 +21,53 @@ import torch
 class StreamLens:
     """The lens held for the current stream (``fixed``), from its first predictions."""
 
-    def __init__(self, lens_frames: int, static: bool, hand_branch: bool) -> None:
+    def __init__(self, lens_frames: int, static: bool, hand_branch: bool,
+                 predict: Callable[[np.ndarray], Intrinsics], beside: bool) -> None:
         """Hold no lens yet.
 
         Args:
             lens_frames: the engine's ``lens_frames`` (0: never hold a lens).
             static: a fixed camera (``camera_motion: static``).
             hand_branch: the hands come from the model's hand branch (no lens is held).
+            predict: returns the model's intrinsics of one RGB image (a fixed camera's lens).
+            beside: a fixed camera's lens is estimated beside the stream (``lens_warmup``).
 
         """
-        self._wanted = lens_frames
         self._static = static
         self._holds = lens_frames > 0 and not hand_branch
-        self._predicted: list[Intrinsics] = []  # a fixed camera's first predicted intrinsics
-        self.fixed: Intrinsics | None = None  # ... their median, or a moving camera's, once held
+        self._warmup = (LensWarmup(predict, lens_frames, beside) if static and self._holds
+                        else None)
+        self.fixed: Intrinsics | None = None  # the lens held, once held
+
+    @property
+    def provisional(self) -> bool:
+        """Return whether a fixed camera's lens is still being estimated (not settled yet)."""
+        return self._warmup is not None and self.fixed is None
 
     def reset(self) -> None:
         """Start a new stream: no lens held."""
-        self._predicted = []
+        if self._warmup is not None:
+            self._warmup.reset()
         self.fixed = None
+
+    def close(self) -> None:
+        """Stop a fixed camera's lens estimation."""
+        if self._warmup is not None:
+            self._warmup.drain()
+            self._warmup.close()
+
+    def static_lens(self, image: np.ndarray) -> tuple[Intrinsics, bool] | None:
+        """Return a fixed camera's lens for a frame, and whether it is provisional.
+
+        None where no lens is estimated beside the stream. Offers the frame to the estimation
+        (``LensWarmup``); once it settled, its lens is held.
+        """
+        if self._warmup is None:
+            return None
+        lens, provisional = self._warmup.lens(image)
+        if not provisional:
+            self.fixed = lens
+        return lens, provisional
 
     def hold(self, frames: list[PreparedFrame], used: torch.Tensor) -> torch.Tensor:
         """Return a moving camera's first block's intrinsics as one lens, held for the stream.
@@ -48,7 +79,7 @@ class StreamLens:
         Returns:
             ``used``, or with a lens to hold, its median for every frame (held in ``fixed`` in
             source pixels, and given to the frames after it). Unchanged with given intrinsics,
-            a fixed camera (``collect``), a lens held already, or none to hold.
+            a fixed camera (``static_lens``), a lens held already, or none to hold.
 
         """
         if (self.fixed is not None or self._static or not self._holds
@@ -66,16 +97,6 @@ class StreamLens:
         BA refines a lens only where none was given.
         """
         return frame.intrinsics is not None and frame.intrinsics is not self.fixed
-
-    def collect(self, record: CameraSpaceFrame) -> None:
-        """Collect a fixed camera's predicted intrinsics; hold their median once enough came."""
-        if (record.frame.intrinsics is not None or self.fixed is not None
-                or not self._static or not self._holds):
-            return
-        self._predicted.append(record.intrinsics)
-        if len(self._predicted) == self._wanted:
-            values = np.median([[k.fx, k.fy, k.cx, k.cy] for k in self._predicted], axis=0)
-            self.fixed = Intrinsics(*values, record.intrinsics.width, record.intrinsics.height)
 
 
 def given_intrinsics(frames: list[PreparedFrame]

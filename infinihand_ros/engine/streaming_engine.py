@@ -17,8 +17,9 @@ keyframe for BA; every keyframe with ``depth_maps``). A fixed camera whose hands
 outside the model (``camera_motion: static`` with MediaPipe) skips the geometry branch wherever
 the intrinsics are known (given, or held from the first frames' predictions:
 ``engine/stream_lens.py``). A moving camera with such a hand source runs the geometry branch on
-every ``geometry_interval``-th frame in per-frame mode (and wherever the tracker needs depth);
-every other frame is tracked from the image alone, with the last intrinsics. Without BA a frame
+every ``geometry_interval``-th frame in per-frame mode (and wherever the tracker needs depth;
+'auto': paced to the input's rate from measured cost, ``engine/pacing.py``); every other frame
+is tracked from the image alone, with the last intrinsics. Without BA a frame
 due for the geometry branch while the tracker holds the camera can go out before its geometry
 branch runs (``engine/deferred_geometry.py``, ``catch_up``). A hand source that reads images
 (MediaPipe) does so in its own thread, in push order, while the model runs on the frame
@@ -27,8 +28,8 @@ arrives (``detect_ahead``).
 
 Threading contract: one caller at a time. ``push``, ``flush``, ``reset``, ``catch_up`` and
 ``close`` raise ``EngineStateError`` when called while another thread is inside one of them, and
-after ``close()``; nothing is consumed then. ``detect_ahead`` and ``stamp_step`` alone may be
-called from another thread (an image callback) while they run.
+after ``close()``; nothing is consumed then. ``detect_ahead``, ``stamp_step`` and
+``observe_input`` alone may be called from another thread (an image callback) while they run.
 """
 
 from collections.abc import Iterator
@@ -36,6 +37,7 @@ from collections.abc import Sequence
 import contextlib
 import dataclasses
 import threading
+import time
 
 from infinihand_ros.ba.config import BAConfig
 from infinihand_ros.core.datatypes import CameraPose
@@ -62,6 +64,7 @@ from infinihand_ros.engine.hands.source import build_hand_source
 from infinihand_ros.engine.model_builder import build_model
 from infinihand_ros.engine.model_builder import InfiniHandModel
 from infinihand_ros.engine.output.stage import OutputStage
+from infinihand_ros.engine.pacing import Pacer
 from infinihand_ros.engine.pose_track import PoseTrack
 from infinihand_ros.engine.scale_sampling import scale_correction
 from infinihand_ros.engine.scale_sampling import scale_samples
@@ -136,15 +139,21 @@ class StreamingEngine:
                         if self._hand_source.needs_image else None)
         self._policy = StreamPolicy(self.config.restart_after_s)
         self._lens = StreamLens(self.config.lens_frames, self.static,
-                                self._hand_source.uses_hand_branch)
+                                self._hand_source.uses_hand_branch,
+                                lambda image: self._pass.predict_intrinsics(image),
+                                beside=self.config.lens_warmup == 'beside')
         self._pass = CameraSpacePass(self.model, self.config, self._hand_source, self._reader,
                                      self._lens, self._stage)
         # The geometry branch of a frame answered first (catch_up, or the next call).
         geometry = self.model.geometry
+        self._pacer = Pacer(self.config.geometry_interval, self.config.geometry_lag,
+                            self.config.pacing,
+                            applies=(self.config.mode == 'per_frame' and self._tracking
+                                     and not self._hand_source.uses_hand_branch))
         self._deferred = DeferredGeometry(
             self._pass.geometry_only,
             lambda: (*geometry.aggregator.frame_blocks, *geometry.aggregator.global_blocks,
-                     geometry.depth_head), self.config.geometry_lag)
+                     geometry.depth_head), self._pacer.lag, self._pacer.geometry_cost)
         self._rectifier = LensRectifier()  # distorted frames -> pinhole ones with the same K
         self._guard = threading.Lock()
         self._closed = False
@@ -161,6 +170,7 @@ class StreamingEngine:
         # (index, source intrinsics, model-input intrinsics) of the last geometry frame
         self._geometry_seen: tuple[int, Intrinsics, Intrinsics] | None = None
         self._deferred.reset()
+        self._pacer.reset()
         ba = self.config.bundle_adjustment
         blend_s = (self.config.pose_track.correction_blend_s if ba is None
                    else ba.corrections.blend_s)
@@ -191,7 +201,9 @@ class StreamingEngine:
                 'ba': None if self._ba is None else self._ba.statistics(),
                 'hands': self._hand_source.statistics(),
                 'frames_out_of_order': self._policy.out_of_order,
-                'stream_restarts': self._policy.restarts}
+                'stream_restarts': self._policy.restarts,
+                'pacing': self._pacer.state().as_dict(),
+                'lens_provisional': self._lens.provisional}
 
     @property
     def model_stream(self) -> GeometryStream:
@@ -239,13 +251,29 @@ class StreamingEngine:
 
         """
         with self._exclusive():
+            start = time.perf_counter()
             image = self._rectifier.rectify(image, intrinsics)  # pinhole from here on
             frame = self._prepare(image, timestamp_ns, intrinsics)
+            settling = time.perf_counter()
             self._settle_owed(frame)  # the owed geometry where due (the gate still open)
+            settled = time.perf_counter() - settling  # geometry, timed where it runs
             with self._deferred.holding():
+                self._deferred.lag = self._pacer.lag
                 way = self._route(frame)
                 self._run(way, frame, image)
-                return self._finish_ready(wait=False)
+                results = self._finish_ready(wait=False)
+            if way in (Route.TRACKED, Route.TRACKED_FIRST):
+                self._pacer.frame_cost(time.perf_counter() - start - settled)
+            return results
+
+    def observe_input(self, arrival_ns: int) -> None:
+        """Note when an image arrived at a live caller (``time.monotonic_ns()``), pushed or not.
+
+        From any thread (an image callback). With ``geometry_interval: auto`` the engine is
+        paced to the rate images arrive at; without these notes, to the stamps of the frames
+        pushed (which a caller dropping frames spreads out).
+        """
+        self._pacer.arrived(arrival_ns)
 
     @property
     def detects_ahead(self) -> bool:
@@ -386,6 +414,7 @@ class StreamingEngine:
             if self._reader is not None:
                 self._reader.close()
             self._deferred.close()
+            self._lens.close()
             if self._ba is not None:
                 self._ba.close()
             self._hand_source.close()
@@ -444,6 +473,7 @@ class StreamingEngine:
             frame = self._pass.prepare(image, stamp, intrinsics, self._frames_pushed)
         self._frames_pushed += 1
         self._policy.accept(frame.timestamp_ns)
+        self._pacer.pushed(frame.timestamp_ns)
         return frame
 
     def _settle_owed(self, frame: PreparedFrame) -> None:
@@ -461,7 +491,7 @@ class StreamingEngine:
         since = None if seen is None else frame.index - (seen[0] if owed is None else owed)
         situation = FrameSituation(
             fitted=frame.pixels is not None, per_frame=self.config.mode == 'per_frame',
-            geometry_interval=self.config.geometry_interval, tracking=self._tracking,
+            geometry_interval=self._pacer.interval, tracking=self._tracking,
             hand_branch=self._hand_source.uses_hand_branch, held_back=bool(self._pass.pending),
             in_anchors=frame.index < self._pass.anchor_frames, frames_since_geometry=since,
             owed=owed is not None, owed_failed=self._deferred.failed,
@@ -521,6 +551,7 @@ class StreamingEngine:
     def _run_block(self) -> None:
         """Run the geometry branch on the held-back frames (their hands follow in the pass)."""
         count = len(self._pass.pending)
+        start = time.perf_counter()
         try:
             frames = self._pass.run_block()
         except ModelOutputError as exc:  # the block's frames were not added: forget them
@@ -529,6 +560,8 @@ class StreamingEngine:
             raise ModelOutputError(f'{self._checkpoint_name()}: {exc}') from exc
         self._accepted_stamp = frames[-1].timestamp_ns
         self._deferred.failed = False
+        if count == 1:  # a frame's geometry branch (an anchor block's is no single frame's)
+            self._pacer.geometry_cost(time.perf_counter() - start)
 
     def _finish_ready(self, wait: bool) -> list[FrameResult]:
         """Finish the records that are ready, in order; return their results (all: ``wait``)."""
@@ -562,7 +595,6 @@ class StreamingEngine:
         kept = record.depth is not None and frame.keyframe and (to_ba or self.config.depth_maps)
         with self._stage(STAGE_TRACK):
             track.observe_scale(*self._scale_samples_of(record, kept))
-        self._lens.collect(record)
         depth = (frame.mapping.map_to_source(record.depth.model()) * track.scale if kept
                  else None)
         if record.depth is not None and record.depth.computed:
@@ -577,7 +609,8 @@ class StreamingEngine:
             fields = self._placement.fields(record.hands, best)
         result = FrameResult(timestamp_ns=frame.timestamp_ns, frame_index=frame.index,
                              intrinsics=record.intrinsics, is_keyframe=frame.keyframe,
-                             depth=depth, hand_source=self._hand_source.name, **fields)
+                             depth=depth, hand_source=self._hand_source.name,
+                             provisional_intrinsics=frame.provisional_lens, **fields)
         with self._stage(STAGE_OUTPUT):
             return self._output.apply(result)
 

@@ -151,7 +151,9 @@ def main(argv: list[str] | None = None) -> int:
     rclpy.init(args=sys.argv if argv is None else None)
     try:
         counts = record(options)
-    except KeyboardInterrupt:  # SIGINT while the node was still being created
+    except (KeyboardInterrupt, RCLError) as exc:  # SIGINT while the node was being created
+        if not shut_down_by_signal(exc):
+            raise
         print('record: interrupted before recording started', file=sys.stderr)
         return EXIT_OK
     finally:

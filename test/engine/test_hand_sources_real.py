@@ -221,8 +221,9 @@ def test_a_fixed_camera_with_mediapipe_hands_runs_no_geometry_where_intrinsics_a
     """camera_motion static + MediaPipe: the geometry branch only predicts missing intrinsics.
 
     Given intrinsics: no frame runs it, and the hands are a moving-camera run's (camera
-    frame). Without: the first ``lens_frames`` frames predict them and their
-    median holds for the rest.
+    frame). Without (``lens_warmup: first``): the first ``lens_frames`` frames are predicted
+    each on its own, flagged provisional with the median so far, and the median of all of them
+    holds for the rest; no frame enters the geometry stream.
     """
     _, frames, _ = crop_video
     moving = _run(frames)
@@ -236,13 +237,14 @@ def test_a_fixed_camera_with_mediapipe_hands_runs_no_geometry_where_intrinsics_a
             np.testing.assert_array_equal(same.joints_world, same.joints_cam)
     warmup = 4
     predicted, statistics = _stream(frames, intrinsics=False, camera_motion='static',
-                                    lens_frames=warmup)
-    assert statistics['frames_without_geometry'] == len(frames) - warmup
-    median = np.median([[k.fx, k.fy, k.cx, k.cy] for k in
-                        (result.intrinsics for result in predicted[:warmup])], axis=0)
-    for result in predicted[warmup:]:
-        k = result.intrinsics
-        np.testing.assert_allclose([k.fx, k.fy, k.cx, k.cy], median, rtol=1e-12)
+                                    lens_frames=warmup, lens_warmup='first')
+    assert statistics['frames_without_geometry'] == len(frames)
+    assert not statistics['lens_provisional']
+    assert [r.provisional_intrinsics for r in predicted] == [True] * (warmup - 1) + [False] * (
+        len(frames) - warmup + 1)
+    settled = predicted[warmup - 1].intrinsics
+    assert 0.5 * frames[0].intrinsics.fx < settled.fx < 2.0 * frames[0].intrinsics.fx
+    assert {result.intrinsics for result in predicted[warmup - 1:]} == {settled}
 
 
 @pytest.mark.slow

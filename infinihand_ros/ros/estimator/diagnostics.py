@@ -9,7 +9,12 @@ then, and when the camera tracker could not measure published frames in the imag
 poses follow the network's motion) or restarted (a discontinuity: a cut, or the view lost for
 several frames). STALE before the first image. The values include how many frames took their
 intrinsics from a paired CameraInfo, the fallback and the model (``intrinsics_from_*``): frames
-counted under ``model`` while a camera publishes CameraInfos mean that pairing is failing.
+counted under ``model`` while a camera publishes CameraInfos mean that pairing is failing;
+``lens_provisional``: a fixed camera's lens is still being estimated beside the stream (its
+frames go out with a provisional one, flagged ``provisional_intrinsics`` in their results). The
+engine's pacing (``engine/pacing.py``): the geometry interval it runs, whether it is chosen from
+measured cost, the costs, the input's frame period and the share of it the engine fills
+(``utilisation``).
 """
 
 from dataclasses import dataclass
@@ -65,6 +70,19 @@ def _tracker_ms(engine_statistics: dict[str, object]) -> float:
             else float('nan'))
 
 
+def _pacing_values(engine_statistics: dict[str, object]) -> tuple[tuple[str, object], ...]:
+    """Return the engine's pacing figures (``engine/pacing.py``): interval, costs, utilisation."""
+    pacing = engine_statistics.get('pacing')
+    if not isinstance(pacing, dict):
+        return ()
+    nan = float('nan')
+    return (('geometry_interval', pacing.get('geometry_interval', 0)),
+            ('geometry_interval_paced', pacing.get('paced', False)),
+            ('geometry_lag', pacing.get('geometry_lag', 0)),
+            *((key, nan if pacing.get(key) is None else float(pacing[key]))
+              for key in ('frame_ms', 'geometry_ms', 'period_ms', 'utilisation')))
+
+
 def _format(value: object) -> str:
     """Return a figure as diagnostics text (floats with 3 decimals, NaN as 'nan')."""
     if isinstance(value, float):
@@ -109,7 +127,9 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         ('tracker_ms_per_frame', _tracker_ms(engine_statistics)),
         ('frames_with_depth', engine_statistics.get('frames_with_depth', 0)),
         ('frames_without_geometry', engine_statistics.get('frames_without_geometry', 0)),
-        ('geometry_failures', engine_statistics.get('geometry_failures', 0)))
+        ('geometry_failures', engine_statistics.get('geometry_failures', 0)),
+        ('lens_provisional', engine_statistics.get('lens_provisional', False)),
+        *_pacing_values(engine_statistics))
     text = tuple((key, _format(value)) for key, value in values)
     if snapshot.received == 0:
         return DiagnosticReport(STALE, 'waiting for images', text)

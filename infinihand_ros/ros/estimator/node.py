@@ -37,6 +37,7 @@ import contextlib
 import copy
 import sys
 import threading
+import time
 from typing import Any, Final
 
 from diagnostic_msgs.msg import DiagnosticArray
@@ -133,9 +134,11 @@ class EstimatorNode(Node):
         self.get_logger().info(
             f'ready: engine profile {self.config.engine.profile}, {engine.config.mode} on '
             f'{engine.config.device}, hand source {engine.config.hands.source}, camera motion '
-            f'{engine.config.camera_motion}, geometry every {engine.config.geometry_interval} '
-            f'frames, smoothing {engine.config.output.smoothing.mode}, bundle adjustment '
+            f'{engine.config.camera_motion}, {pacing_text(engine)}, smoothing '
+            f'{engine.config.output.smoothing.mode}, bundle adjustment '
             f'{self.config.engine.bundle_adjustment}')
+        self._interval_logged = engine.statistics['pacing']['geometry_interval']
+        self._lens_provisional = False
 
     def close(self) -> None:
         """Stop the inference thread and close the engine (call before ``destroy_node``)."""
@@ -159,6 +162,7 @@ class EstimatorNode(Node):
         stamp_ns = ns_from_stamp(msg.header.stamp)
         if self._stamp_step(msg, stamp_ns) is StampStep.OUT_OF_ORDER:
             return
+        self.engine.observe_input(time.monotonic_ns())  # paced to the rate images arrive at
         rgb = None
         if self.engine.detects_ahead:
             with contextlib.suppress(InputError):
@@ -274,6 +278,7 @@ class EstimatorNode(Node):
                                     throttle_duration_sec=self.config.bad_frame_log_period_s)
             return
         self._engine_statistics = self.engine.statistics
+        self._log_pacing()
         camera_frame = (self.config.frames.camera_frame_id or msg.header.frame_id
                         or topics.CAMERA_FRAME_ID)
         for result in results:
@@ -294,6 +299,24 @@ class EstimatorNode(Node):
         if self._ba_node is not None:
             self._ba_node.report_folded_in()
             self._ba_node.send_keyframes(camera_frame)
+
+    def _log_pacing(self) -> None:
+        """Log the geometry interval each time the engine's pacing changes it, and the lens."""
+        provisional = bool(self._engine_statistics['lens_provisional'])
+        if provisional != self._lens_provisional:
+            self._lens_provisional = provisional
+            self.get_logger().info(
+                'lens: provisional while it is estimated beside the stream (frames flagged '
+                'provisional_intrinsics)' if provisional else 'lens: settled')
+        pacing = self._engine_statistics['pacing']
+        if pacing['geometry_interval'] == self._interval_logged:
+            return
+        self._interval_logged = pacing['geometry_interval']
+        self.get_logger().info(
+            f"pacing: geometry branch every {pacing['geometry_interval']} frame(s) (a frame "
+            f"{pacing['frame_ms']:.0f} ms, the geometry branch {pacing['geometry_ms']:.0f} ms, "
+            f"input every {pacing['period_ms']:.0f} ms: "
+            f"{100 * pacing['utilisation']:.0f} % of it used)")
 
     def _fold_in_corrections(self) -> None:
         """Fold the BA node's corrections received since the last frame into the engine."""
@@ -341,6 +364,17 @@ DESCRIPTION: Final = (
     'Engine settings: -p engine.profile:=live (the default: a moving camera), teleop (a\n'
     "fixed camera), offline or synthetic; -p engine.set:='geometry_interval=1 device=cuda'\n"
     'overrides single settings (config/engine.yaml lists them all).')
+
+
+def pacing_text(engine: StreamingEngine) -> str:
+    """Return how often the engine runs its geometry branch, for the start-up log."""
+    pacing = engine.statistics['pacing']
+    if pacing['paced']:
+        limits = engine.config.pacing
+        return (f"geometry branch paced from measured cost (every {pacing['geometry_interval']} "
+                f'frames to start, up to {limits.max_geometry_interval}, within '
+                f'{100 * limits.utilisation:.0f} % of the frame period)')
+    return f"geometry every {pacing['geometry_interval']} frames"
 
 
 def main(args: list[str] | None = None) -> int:
