@@ -11,20 +11,31 @@ no intrinsics given, and the final trajectory (what the converter writes) is sco
   either side; the written world joints projected through the written camera pose and
   intrinsics against MediaPipe's landmarks (per hand the median joint distance over the size of
   MediaPipe's landmark box; median and 90th percentile over hands); written hands where
-  MediaPipe alone finds none on that side.
+  MediaPipe alone finds none on that side;
+- MediaPipe alone's labels checked against the arm's side of entry (where it decides a side):
+  how many it decides, how many MediaPipe alone labels that way, and how many of ours are on
+  that side;
+- the converter's accounting of the hands its own MediaPipe found: written, or dropped for a
+  named reason (``convert/hand_accounting.py``).
 """
 
 import argparse
+from dataclasses import asdict
 from dataclasses import replace
 import json
 from pathlib import Path
 
 from infinihand_ros.convert.config import load_convert_config
+from infinihand_ros.convert.hand_accounting import account_hands
+from infinihand_ros.convert.lerobot_features import frame_values
+from infinihand_ros.convert.lerobot_features import HAND_VALID
 from infinihand_ros.convert.run import engine_config_for
 from infinihand_ros.engine.streaming_engine import StreamingEngine
+from infinihand_ros.eval.reference_clip import arm_scores
 from infinihand_ros.eval.reference_clip import hand_scores
 from infinihand_ros.eval.reference_clip import load_reference_clip
 from infinihand_ros.eval.reference_clip import mediapipe_hands
+from infinihand_ros.eval.reference_clip import mediapipe_labelled
 from infinihand_ros.eval.reference_clip import reference_scores
 import numpy as np
 from records import add_record_option
@@ -41,10 +52,12 @@ def run(folder: Path, with_ba: bool) -> dict:
     if not with_ba:
         config = replace(config, bundle_adjustment=None)
     with StreamingEngine(config) as engine:
+        source_before = engine.statistics['hands']
         live = []
         for image, stamp in clip.frames():
             live += engine.push(image, stamp, None)
         final = engine.refined(live + engine.flush())
+        source_after = engine.statistics['hands']
     focal = float(np.median([result.intrinsics.fx for result in final]))
     report = {'clip': clip.name, 'frames': len(final),
               'camera': reference_scores(np.stack([r.camera_pose.matrix() for r in final]),
@@ -52,6 +65,11 @@ def run(folder: Path, with_ba: bool) -> dict:
               'focal_px': focal, 'sfm_focal_px': clip.intrinsics.fx,
               'focal_error_pct': 100.0 * (focal / clip.intrinsics.fx - 1.0)}
     report['hands'] = hand_scores(final, mediapipe_hands(folder))
+    report['arm'] = arm_scores(final, mediapipe_labelled(folder))
+    values = [frame_values(result, 0.0) for result in final]
+    written = int(sum(columns[HAND_VALID].sum() for columns, _ in values))
+    report['accounting'] = asdict(account_hands(source_before, source_after, written,
+                                                [reasons for _, reasons in values]))
     return report
 
 
@@ -100,6 +118,16 @@ def main() -> None:
               f"{h['mediapipe_hands']} | {100 * h['found_same_side']:.0f} % | "
               f"{100 * h['found_either_side']:.0f} % | {h['reprojection_median']:.3f} / "
               f"{h['reprojection_p90']:.3f} | {h['not_in_mediapipe']} |")
+    print()
+    print('| clip | MediaPipe alone: arm decides | MediaPipe labels it so | ours on that side | '
+          'frames MediaPipe labels two hands alike | our MediaPipe: found | written | dropped |')
+    print('|---|---|---|---|---|---|---|---|')
+    for r in reports:
+        a, n = r['arm'], r['accounting']
+        dropped = ', '.join(f'{count} {reason}' for reason, count in n['dropped'].items())
+        print(f"| {r['clip']} | {a['arm_decided']} | {a['reference_with_arm']} | "
+              f"{a['ours_with_arm']} | {a['reference_label_twice']} | {n['found']} | "
+              f"{n['written']} | {dropped or 'none'} |")
 
 
 if __name__ == '__main__':

@@ -23,6 +23,7 @@ from typing import Any
 
 from infinihand_ros.convert.config import ConvertConfig
 from infinihand_ros.convert.estimates_bag import EstimatesBagWriter
+from infinihand_ros.convert.hand_accounting import account_hands
 from infinihand_ros.convert.lerobot_features import ACTION
 from infinihand_ros.convert.lerobot_features import CAMERA_FLAG_NAMES
 from infinihand_ros.convert.lerobot_features import CAMERA_FLAGS
@@ -138,6 +139,7 @@ def convert_episode(frames: Iterable[SourceFrame], engine: StreamingEngine,
     image_stats = ImageStats()
     video_path = work_dir / VIDEO_FILE
     last_source = -1
+    source_before = engine.statistics['hands']
     try:
         with EpisodeVideoWriter(video_path, config.fps, config.video) as video:
             for out in resample(((f.timestamp_ns, f) for f in frames), config.fps):
@@ -156,8 +158,13 @@ def convert_episode(frames: Iterable[SourceFrame], engine: StreamingEngine,
             results += _without_depth(engine.flush())
             collector.add(engine.refined(results))
             video_info = video.close()
-        report.metric_scale = float(engine.statistics['metric_scale'])
-        report.bundle_adjustment = engine.statistics['ba']
+        statistics = engine.statistics
+        report.metric_scale = float(statistics['metric_scale'])
+        report.bundle_adjustment = statistics['ba']
+        report.hands_found = account_hands(
+            source_before, statistics['hands'],
+            int(sum(values[HAND_VALID].sum() for values in collector.values.values())),
+            collector.reasons.values())
     finally:
         engine.reset()
         if bag is not None:

@@ -6,6 +6,8 @@ from dataclasses import dataclass
 from dataclasses import field
 from typing import Any, Final
 
+from infinihand_ros.convert.hand_accounting import HandAccounting
+
 CONVERTED: Final = 'converted'
 FAILED: Final = 'failed'
 SKIPPED: Final = 'already in dataset'
@@ -27,6 +29,9 @@ class EpisodeReport:
         warnings: reason -> frames kept despite a problem.
         hands_valid: side -> output frames with a valid hand.
         hands_invalid: side -> {reason -> output frames} for frames without a valid hand.
+        hands_found: the hands the hand source found in the frames used, per frame used (not
+            per output frame): how many were written, and how many dropped for each reason;
+            they add up.
         camera_tracking: output frames whose camera pose was measured in the image
             ('tracked'), came from the network's motion ('predicted'), or where the camera
             track restarted ('reinitialised': a discontinuity).
@@ -51,6 +56,7 @@ class EpisodeReport:
     warnings: dict[str, int] = field(default_factory=dict)
     hands_valid: dict[str, int] = field(default_factory=dict)
     hands_invalid: dict[str, dict[str, int]] = field(default_factory=dict)
+    hands_found: HandAccounting = field(default_factory=HandAccounting)
     camera_tracking: dict[str, int] = field(default_factory=dict)
     ba_failed_frames: int = 0
     source_gaps: int = 0
@@ -82,6 +88,7 @@ class EpisodeReport:
         for side, reasons in self.hands_invalid.items():
             out += [f'  {side} hand invalid in {count} frames: {reason}'
                     for reason, count in reasons.items()]
+        out.append(f'  {self.hands_found.line()} (frames used)')
         if self.camera_tracking:
             out.append('  camera pose: ' + ', '.join(
                 f'{state} {count}' for state, count in self.camera_tracking.items()))

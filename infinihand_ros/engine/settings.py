@@ -42,7 +42,7 @@ OFFLINE_BA: Final[dict[str, Any]] = {'bundle_adjustment': True,
 #: What each use changes from the defaults (which are ``live``'s), as dotted keys.
 PROFILES: Final[dict[str, dict[str, Any]]] = {
     'live': {},
-    'teleop': {'camera_motion': 'static'},
+    'teleop': {'camera_motion': 'static', 'hands.egocentric': False},
     'offline': {'mode': 'windowed', 'lens_warmup': 'first', **OFFLINE_BA},
     'synthetic': {'hands.source': 'infinihand'},
 }

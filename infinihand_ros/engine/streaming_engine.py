@@ -124,9 +124,10 @@ class StreamingEngine:
         self.stage_timer: StageTimer | None = None
         self._scale_correction = scale_correction(self.config.metric_scale,
                                                   self.config.model.checkpoint)
-        self._output = OutputStage(self.config.output, self.model.hand_branch.hand_models)
         self._hand_source = build_hand_source(self.config.hands,
                                               self.model.hand_branch.hand_models)
+        self._output = OutputStage(self.config.output, self.model.hand_branch.hand_models,
+                                   relabel=not self._hand_source.decides_sides)
         if ba_backend is None and self.config.bundle_adjustment is not None and not self.static:
             ba_backend = InProcessBA(self.config.bundle_adjustment,
                                      self.config.pose_track.capacity)

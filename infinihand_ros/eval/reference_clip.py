@@ -19,7 +19,10 @@ from infinihand_ros.core.datatypes import Intrinsics
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.geometry import invert_transform
 from infinihand_ros.core.geometry import rotation_angle_deg
+from infinihand_ros.core.hand_conventions import LEFT
+from infinihand_ros.core.hand_conventions import RIGHT
 from infinihand_ros.core.units import NS_PER_S
+from infinihand_ros.engine.hands.side import arm_entry
 from infinihand_ros.eval.trajectory import trajectory_metrics
 import numpy as np
 
@@ -117,16 +120,64 @@ def reference_scores(T_world_cam: np.ndarray, clip: ReferenceClip,
             'end_deg': float(rotation_angle_deg(end_pred[:3, :3], end_true[:3, :3]))}
 
 
-#: MediaPipe's unmirrored handedness labels as our sides (0 left, 1 right).
-MEDIAPIPE_SIDES = {'Left': 0, 'Right': 1}
+#: MediaPipe's unmirrored handedness labels as our sides.
+MEDIAPIPE_SIDES = {'Left': LEFT, 'Right': RIGHT}
+#: The arm's side of entry decides a reference hand's side from this evidence (``arm_scores``).
+ARM_DECIDES = 0.5
+
+
+def mediapipe_labelled(folder: str | Path) -> list[list[tuple[int, np.ndarray]]]:
+    """Return per frame MediaPipe alone's hands as (side, landmarks (21, 2) px), as it labelled.
+
+    Unlike ``mediapipe_hands`` it keeps both hands of a frame where MediaPipe gave them one label.
+    """
+    data = np.load(Path(folder) / 'mediapipe.npz')
+    return [[(MEDIAPIPE_SIDES[str(side)], landmarks[k]) for k, side in enumerate(sides[:count])]
+            for landmarks, sides, count in zip(data['landmarks_px'],
+                                               data['handedness_unmirrored'], data['num_hands'])]
 
 
 def mediapipe_hands(folder: str | Path) -> list[dict[int, np.ndarray]]:
-    """Return per frame MediaPipe alone's landmarks (21, 2) px by side, from ``mediapipe.npz``."""
-    data = np.load(Path(folder) / 'mediapipe.npz')
-    return [{MEDIAPIPE_SIDES[str(side)]: landmarks[k] for k, side in enumerate(sides[:count])}
-            for landmarks, sides, count in zip(data['landmarks_px'],
-                                               data['handedness_unmirrored'], data['num_hands'])]
+    """Return per frame MediaPipe alone's landmarks (21, 2) px by side, from ``mediapipe.npz``.
+
+    Of two hands labelled alike the second is kept (``arm_scores`` counts such frames).
+    """
+    return [dict(hands) for hands in mediapipe_labelled(folder)]
+
+
+def arm_scores(results: list[FrameResult], labelled: list[list[tuple[int, np.ndarray]]],
+               min_evidence: float = ARM_DECIDES) -> dict[str, int]:
+    """Check MediaPipe alone's labels, and ours, against the arm's side of entry.
+
+    On a head-mounted view the wearer's arm enters from its own side (``side.arm_entry``).
+
+    Args:
+        results: our results, one per frame.
+        labelled: MediaPipe alone's hands per frame (``mediapipe_labelled``).
+        min_evidence: the arm decides a hand's side where its evidence is at least this.
+
+    Returns:
+        ``arm_decided``: MediaPipe's hands whose arm decides a side; ``reference_with_arm``:
+        of them, those MediaPipe labelled that side; ``ours_with_arm``: those with a hand of
+        ours on that side; ``reference_label_twice``: frames where MediaPipe gave two hands one
+        label (scored as one hand).
+
+    """
+    decided = reference = ours = twice = 0
+    for result, hands in zip(results, labelled, strict=True):
+        twice += len({side for side, _ in hands}) < len(hands)
+        width, height = result.intrinsics.width, result.intrinsics.height
+        sides = {hand.side for hand in result.hands}
+        for side, landmarks in hands:
+            evidence = arm_entry(landmarks, width, height)
+            if abs(evidence) < min_evidence:
+                continue
+            arm_side = RIGHT if evidence > 0 else LEFT
+            decided += 1
+            reference += side == arm_side
+            ours += arm_side in sides
+    return {'arm_decided': decided, 'reference_with_arm': reference, 'ours_with_arm': ours,
+            'reference_label_twice': twice}
 
 
 def hand_scores(results: list[FrameResult], reference: list[dict[int, np.ndarray]]

@@ -126,6 +126,8 @@ def test_bags_convert_and_read_back(synth_bags: list[Path], tmp_path: Path) -> N
     reports = _report(output)
     assert [r['status'] for r in reports] == ['converted', 'converted']
     assert reports[0]['frames_in'] == 6 and reports[0]['frames_out'] == 6
+    found = reports[0]['hands_found']  # every hand found is written or dropped for a reason
+    assert found['found'] == found['written'] + sum(found['dropped'].values())
     # keyframe, ba_corrected, tracked, reinitialised, ba_failed
     flags = np.array(data['camera.flags'], dtype=bool)
     tracking = reports[0]['camera_tracking']

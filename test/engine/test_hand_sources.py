@@ -15,7 +15,6 @@ from infinihand_ros.engine.hands.keypoints import Detection2D
 from infinihand_ros.engine.hands.lift import lift_hand
 from infinihand_ros.engine.hands.lift import place_by_projection
 from infinihand_ros.engine.hands.mediapipe_source import MediaPipeHandSource
-from infinihand_ros.engine.hands.mediapipe_source import one_per_side
 from infinihand_ros.engine.hands.source import InfiniHandSource
 from infinihand_ros.mano.builtin import BuiltinHandModel
 from infinihand_ros.mano.fit import inverse_kinematics
@@ -89,20 +88,6 @@ def test_the_lifts_eq5_is_the_models() -> None:
         torch.as_tensor(pixels).expand(count, -1, -1), torch.as_tensor(depths),
         torch.as_tensor(K.matrix()).expand(count, -1, -1))
     np.testing.assert_allclose(got.T, expected.numpy(), atol=1e-12)
-
-
-def _detection(side: int, x: float, score: float = 0.9) -> Detection2D:
-    pixels = np.stack([np.linspace(x, x + 40, 21), np.linspace(100, 160, 21)], axis=1)
-    return Detection2D(side, pixels, np.full(21, score), score, np.zeros((21, 3)))
-
-
-def test_two_hands_labelled_alike_become_one_per_side_or_one_hand() -> None:
-    """Far apart: the weaker takes the free side; on top of each other: a duplicate, dropped."""
-    apart = one_per_side([_detection(RIGHT, 100, 0.8), _detection(RIGHT, 400, 0.95)])
-    assert sorted(d.side for d in apart) == [LEFT, RIGHT]
-    assert next(d for d in apart if d.side == RIGHT).confidence == 0.95
-    same = one_per_side([_detection(RIGHT, 100, 0.8), _detection(RIGHT, 102, 0.95)])
-    assert [(d.side, d.confidence) for d in same] == [(RIGHT, 0.95)]
 
 
 def test_box_iou_by_hand() -> None:

@@ -29,6 +29,14 @@ def test_a_flipped_label_is_undone_and_stamps_pass() -> None:
     assert [hand.side for hand in again.hands] == [RIGHT]
 
 
+def test_a_source_that_decides_sides_is_not_relabelled() -> None:
+    """relabel=False (MediaPipe's sides are decided over time already): a side change stands."""
+    stage = OutputStage(OutputConfig(shape=ShapeConfig(enabled=False)), MODELS, relabel=False)
+    stage.apply(make_result(0, (make_hand(LEFT, (100, 200)),)))
+    turned = stage.apply(make_result(33 * MS, (make_hand(RIGHT, (102, 200)),), index=1))
+    assert [hand.side for hand in turned.hands] == [RIGHT]
+
+
 def test_a_new_scene_keeps_the_label_at_the_same_pixels() -> None:
     """After a cut, a hand where the old scene's was is a new hand: its own label stands."""
     stage = OutputStage(OutputConfig(shape=ShapeConfig(enabled=False)), MODELS)

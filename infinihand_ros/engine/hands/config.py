@@ -23,6 +23,11 @@ class HandsConfig:
                                       'is at least this.', 0.0, 1.0)
     mirrored: bool = parameter(False, 'The images are mirrored (a selfie view); handedness is '
                                'read accordingly.')
+    egocentric: bool = parameter(True, "A head-mounted camera: with MediaPipe, a hand's side "
+                                 "also follows its arm's side of entry (the wearer's right arm "
+                                 'comes in from the lower right), which decides where '
+                                 "MediaPipe's label is unsure. False for a third-person view "
+                                 '(the teleop profile).')
     verify: bool = parameter(False, 'With the infinihand source: keep a hand only where '
                              'MediaPipe finds one of the same side at the same place (a guard '
                              'against images unlike the training data).')

@@ -39,6 +39,9 @@ class HandSource(Protocol):
     uses_hand_branch: bool
     #: Whether ``detect`` needs each frame's source image.
     needs_image: bool
+    #: Whether the source keeps each hand's side over time itself (the output stage's
+    #: identity then relabels nothing).
+    decides_sides: bool
 
     def detect(self, image: np.ndarray, frame_index: int) -> FrameDetections:
         """Look at a pushed frame's source image (RGB uint8); return what camera_hands needs.
@@ -67,13 +70,15 @@ class InfiniHandSource:
 
     name = INFINIHAND
     uses_hand_branch = True
+    decides_sides = False
 
     def __init__(self, config: HandsConfig) -> None:
         """Start MediaPipe too when ``config.verify`` asks for the guard."""
         self.config = config
         self.needs_image = config.verify
         self._detector = MediaPipeDetector(config) if config.verify else None
-        self.counts = {'frames': 0, 'hands': 0, 'dropped_confidence': 0, 'dropped_verify': 0}
+        self.counts = {'frames': 0, 'found': 0, 'hands': 0, 'dropped_confidence': 0,
+                       'dropped_verify': 0}
 
     def detect(self, image: np.ndarray, frame_index: int) -> FrameDetections:
         """Run MediaPipe for the guard (nothing without ``verify``)."""
@@ -87,6 +92,7 @@ class InfiniHandSource:
                      ) -> tuple[HandState, ...]:
         """Return the branch's hands that are confident enough (and verified, with the guard)."""
         self.counts['frames'] += 1
+        self.counts['found'] += len(branch_hands)
         kept = []
         for hand in branch_hands:
             if hand.confidence < self.config.min_confidence:

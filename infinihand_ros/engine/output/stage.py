@@ -2,8 +2,9 @@
 
 The node, the converter and the evaluation all get the engine's results from here, so they
 publish and write the same hands. Per result, in order: hand identity per side
-(``identity.py``), the shared shape per side (``shape.py``, when ``shape.enabled``), then
-smoothing of the world-frame joints (``smoothing.py``, with ``smoothing.mode: one_euro``).
+(``identity.py``; not for a hand source that keeps its hands' sides over time itself), the
+shared shape per side (``shape.py``, when ``shape.enabled``), then smoothing of the
+world-frame joints (``smoothing.py``, with ``smoothing.mode: one_euro``).
 At a cut between scenes (``new_scene``) hands are not carried over: a hand in the new scene is
 not the old scene's hand at the same pixels.
 """
@@ -25,9 +26,15 @@ from infinihand_ros.mano.fit import float64_copies
 class OutputStage:
     """Identity, shared shape and smoothing of a stream's results (one caller, in order)."""
 
-    def __init__(self, config: OutputConfig, hand_models: Sequence[HandModel]) -> None:
-        """Start with no tracks, samples or filter state; ``hand_models`` by side (copied)."""
+    def __init__(self, config: OutputConfig, hand_models: Sequence[HandModel],
+                 relabel: bool = True) -> None:
+        """Start with no tracks, samples or filter state; ``hand_models`` by side (copied).
+
+        ``relabel``: the identity tracker may change a hand's side (False where the hand
+        source decides sides over time itself).
+        """
         self.config = config
+        self.relabel = relabel
         self.hand_models = float64_copies(hand_models)  # posed in numpy by ``reshape_hand``
         self.identity = HandIdentityTracker(config.identity)
         self.shape = ShapeConsensus(config.shape)
@@ -36,7 +43,8 @@ class OutputStage:
     def apply(self, result: FrameResult) -> FrameResult:
         """Return ``result`` with its hands given identity, shared shape and smoothing."""
         size = (result.intrinsics.width, result.intrinsics.height)
-        hands = self.identity.assign(result.hands, result.timestamp_ns, size)
+        hands = (self.identity.assign(result.hands, result.timestamp_ns, size) if self.relabel
+                 else result.hands)
         if self.config.shape.enabled:
             hands = tuple(self._shared_shape(hand) for hand in hands)
         hands = self.smoother.apply(hands, result.timestamp_ns)
