@@ -94,6 +94,12 @@ class ModelSelection:
             raise ConfigError('engine.model: give either checkpoint (a whole model) or '
                               'geometry_weights / crop_encoder_weights (parts), not both')
 
+    @property
+    def weights_name(self) -> str:
+        """Return what the weights come from, for error messages."""
+        return (f'checkpoint {self.checkpoint}' if self.checkpoint is not None
+                else f'seeded untrained weights (seed {self.seed})')
+
 
 @dataclass(frozen=True)
 class DetectionConfig:

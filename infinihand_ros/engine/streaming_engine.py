@@ -1,30 +1,18 @@
 """The one streaming engine: push frames, get per-frame camera poses and world-space hands.
 
-Data flows one way. Each push is prepare, route, run, finish. The frame's stamp goes through the
-stream policy (``engine/stream_policy.py``: one out of order is refused, one far back starts a
-new stream), the frame is checked and fitted to the model (``frame_input``), the schedule
-(``engine/schedule.py``) picks its route, and the paper's camera-space pass
-(``engine/camera_space_pass.py``: geometry through the streaming memory, poses, boxes from masks,
-hand branch) runs on it in blocks: the anchors together, then per frame or per window. Frame by
-frame, in order, each camera-space record then goes to the pose track (its per-frame tracker
-measures the pose in the image, with the network's pose as prior; metric scale from the hands;
-BA corrections), to the bundle-adjustment backend (keyframes; ``engine/ba_backend.py``), its
-hands are placed in the world once (``engine/world_placement.py``) with the track's best pose
-(the identity with ``camera_motion: static``), and the output stage (``engine/output/``:
-identity, shared shape, smoothing) gives the result every consumer gets. The depth head runs
-only on the frames whose depth is used (a new tracker reference, a metric-scale sample, a
-keyframe for BA; every keyframe with ``depth_maps``). A fixed camera whose hands come from
-outside the model (``camera_motion: static`` with MediaPipe) skips the geometry branch wherever
-the intrinsics are known (given, or held from the first frames' predictions:
-``engine/stream_lens.py``). A moving camera with such a hand source runs the geometry branch on
-every ``geometry_interval``-th frame in per-frame mode (and wherever the tracker needs depth;
-'auto': paced to the input's rate from measured cost, ``engine/pacing.py``); every other frame
-is tracked from the image alone, with the last intrinsics. Without BA a frame
-due for the geometry branch while the tracker holds the camera can go out before its geometry
-branch runs (``engine/deferred_geometry.py``, ``catch_up``). A hand source that reads images
-(MediaPipe) does so in its own thread, in push order, while the model runs on the frame
-(``engine/hands/reader.py``); for a fixed camera a live caller can start it when the image
-arrives (``detect_ahead``).
+Each push is prepare, route, run, finish (``docs/architecture.md`` walks through it). The stamp
+goes through the stream policy (``stream_policy.py``), the frame is checked and fitted to the
+model (``frame_input.py``), the schedule picks its route (``schedule.py``; how often a moving
+camera's geometry branch runs: ``pacing.py``, and a frame can go out before its geometry branch
+runs: ``deferred_geometry.py``), the paper's camera-space pass runs it in blocks
+(``camera_space_pass.py``: the anchors together, then per frame or per window), and frame by
+frame, in order, each record goes to the pose track (the per-frame tracker, the metric scale, BA
+corrections), to the BA backend (``ba_backend.py``), has its hands placed in the world once
+(``world_placement.py``) and passes the output stage (``output/``). The depth head runs only
+where a depth is used. A fixed camera with hands from outside the model runs no geometry
+branch once its lens is known (``stream_lens.py``, ``lens_warmup.py``). A hand source that
+reads images (MediaPipe) does so in its own thread, in push order (``hands/reader.py``); for a
+fixed camera a live caller can start it when the image arrives (``detect_ahead``).
 
 Threading contract: one caller at a time. ``push``, ``flush``, ``reset``, ``catch_up`` and
 ``close`` raise ``EngineStateError`` when called while another thread is inside one of them, and
@@ -47,6 +35,7 @@ from infinihand_ros.core.errors import ConfigError
 from infinihand_ros.core.errors import EngineStateError
 from infinihand_ros.core.errors import InputError
 from infinihand_ros.core.errors import ModelOutputError
+from infinihand_ros.engine import stage_timing
 from infinihand_ros.engine.ba_backend import BABackend
 from infinihand_ros.engine.ba_backend import KeyframeFeed
 from infinihand_ros.engine.ba_in_process import InProcessBA
@@ -71,14 +60,6 @@ from infinihand_ros.engine.scale_sampling import scale_samples
 from infinihand_ros.engine.schedule import FrameSituation
 from infinihand_ros.engine.schedule import Route
 from infinihand_ros.engine.schedule import route
-from infinihand_ros.engine.stage_timing import STAGE_DETECTION
-from infinihand_ros.engine.stage_timing import STAGE_FINISH
-from infinihand_ros.engine.stage_timing import STAGE_OUTPUT
-from infinihand_ros.engine.stage_timing import STAGE_PLACEMENT
-from infinihand_ros.engine.stage_timing import STAGE_PREPARE
-from infinihand_ros.engine.stage_timing import STAGE_TRACK
-from infinihand_ros.engine.stage_timing import StageTimer
-from infinihand_ros.engine.stage_timing import timed
 from infinihand_ros.engine.stream_lens import StreamLens
 from infinihand_ros.engine.stream_policy import StreamPolicy
 from infinihand_ros.engine.timestamps import check_timestamp
@@ -121,7 +102,7 @@ class StreamingEngine:
             raise ConfigError('engine.camera_motion: static takes no bundle-adjustment backend '
                               '(a fixed camera is the world frame)')
         self.model = model or build_model(self.config)
-        self.stage_timer: StageTimer | None = None
+        self.stage_timer: stage_timing.StageTimer | None = None
         self._scale_correction = scale_correction(self.config.metric_scale,
                                                   self.config.model.checkpoint)
         self._hand_source = build_hand_source(self.config.hands,
@@ -136,7 +117,8 @@ class StreamingEngine:
         pool = (self.config.bundle_adjustment or BAConfig()).pool
         self._feed = None if ba_backend is None else KeyframeFeed(ba_backend, pool.min_interval_s)
         # The hand source reads each image in its own thread, beside the model (in order).
-        self._reader = (HandReader(self._hand_source, lambda: self._stage(STAGE_DETECTION))
+        self._reader = (HandReader(self._hand_source,
+                                   lambda: self._stage(stage_timing.STAGE_DETECTION))
                         if self._hand_source.needs_image else None)
         self._policy = StreamPolicy(self.config.restart_after_s)
         self._lens = StreamLens(self.config.lens_frames, self.static,
@@ -219,10 +201,9 @@ class StreamingEngine:
     def stamp_step(self, timestamp_ns: int) -> StampStep:
         """Return how ``push`` takes a frame stamped ``timestamp_ns`` now; changes nothing.
 
-        ``NEXT``: it continues the stream; ``OUT_OF_ORDER``: not after the last accepted
-        frame (late or repeated), refused; ``RESTART``: more than ``restart_after_s`` before
-        it, a new stream starts with it. Safe from any thread (an image callback), for a
-        caller that resets what it keeps per stream (or skips the image) before it pushes.
+        ``NEXT``: it continues the stream; ``OUT_OF_ORDER``: not after the last accepted frame,
+        refused; ``RESTART``: more than ``restart_after_s`` before it, a new stream starts with
+        it. Safe from any thread, for a caller that resets what it keeps per stream first.
         """
         return self._policy.step(timestamp_ns)
 
@@ -270,9 +251,8 @@ class StreamingEngine:
     def observe_input(self, arrival_ns: int) -> None:
         """Note when an image arrived at a live caller (``time.monotonic_ns()``), pushed or not.
 
-        From any thread (an image callback). With ``geometry_interval: auto`` the engine is
-        paced to the rate images arrive at; without these notes, to the stamps of the frames
-        pushed (which a caller dropping frames spreads out).
+        From any thread. ``geometry_interval: auto`` paces the engine to the rate images arrive
+        at; without these notes, to the stamps of the frames pushed (which drops spread out).
         """
         self._pacer.arrived(arrival_ns)
 
@@ -302,12 +282,10 @@ class StreamingEngine:
     def catch_up(self) -> None:
         """Run or start the geometry branch a frame whose result went out first owes (if any).
 
-        For a live caller, right after publishing a result. Where the next frame would take
-        its outputs in, it runs (or, started earlier, is waited for) here, so the next frame
-        does not wait for it; with ``geometry_lag`` >= 1, right after the frame it belongs to, it
-        starts in a worker thread instead, held while a frame is being pushed, so that
-        the next frame's answer does not wait for it either. Without catch_up the call that
-        needs it runs it. Results are the same either way.
+        For a live caller, right after publishing a result: where the next frame would take its
+        outputs in, it runs here (or is waited for); with ``geometry_lag`` >= 1 it starts in a
+        worker thread, held while a frame is pushed. Without catch_up the call that needs it
+        runs it. Results are the same either way.
 
         Raises:
             EngineStateError: after ``close()`` or when another thread is inside the engine.
@@ -443,7 +421,7 @@ class StreamingEngine:
 
     def _stage(self, name: str) -> contextlib.AbstractContextManager[None]:
         """Return a context that tells ``stage_timer`` (if set) how long its body took."""
-        return timed(self.stage_timer, name)
+        return stage_timing.timed(self.stage_timer, name)
 
     def _restart(self) -> None:
         """Start a new sequence (``reset``, from inside a call)."""
@@ -470,7 +448,7 @@ class StreamingEngine:
             check_intrinsics(intrinsics, check_image(image))  # a bad frame restarts nothing
         if self._policy.admit(stamp) is StampStep.RESTART:
             self._restart()
-        with self._stage(STAGE_PREPARE):
+        with self._stage(stage_timing.STAGE_PREPARE):
             frame = self._pass.prepare(image, stamp, intrinsics, self._frames_pushed)
         self._frames_pushed += 1
         self._policy.accept(frame.timestamp_ns)
@@ -558,7 +536,7 @@ class StreamingEngine:
         except ModelOutputError as exc:  # the block's frames were not added: forget them
             self._frames_pushed -= count
             self._policy.accept(self._accepted_stamp)
-            raise ModelOutputError(f'{self._checkpoint_name()}: {exc}') from exc
+            raise ModelOutputError(f'{self.config.model.weights_name}: {exc}') from exc
         self._accepted_stamp = frames[-1].timestamp_ns
         self._deferred.failed = False
         if count == 1:  # a frame's geometry branch (an anchor block's is no single frame's)
@@ -568,7 +546,7 @@ class StreamingEngine:
         """Finish the records that are ready, in order; return their results (all: ``wait``)."""
         results: list[FrameResult] = []
         for record in self._pass.records(wait):
-            with self._stage(STAGE_FINISH):
+            with self._stage(stage_timing.STAGE_FINISH):
                 results.append(self._finish(record))
         return results
 
@@ -585,7 +563,7 @@ class StreamingEngine:
         track = self.pose_track
         view = (None if record.view is None
                 else with_hand_boxes(record.view, frame, record.hands))
-        with self._stage(STAGE_TRACK):
+        with self._stage(stage_timing.STAGE_TRACK):
             state = track.add(frame.index, frame.timestamp_ns, record.T_raw, view)
         self._deferred.finished(record, track.tracker.moment)
         if record.T_raw is not None and view is not None:
@@ -594,7 +572,7 @@ class StreamingEngine:
             self._output.new_scene()
         to_ba = self._feed is not None and self._feed.wants(frame, record.depth is not None)
         kept = record.depth is not None and frame.keyframe and (to_ba or self.config.depth_maps)
-        with self._stage(STAGE_TRACK):
+        with self._stage(stage_timing.STAGE_TRACK):
             track.observe_scale(*self._scale_samples_of(record, kept))
         depth = (frame.mapping.map_to_source(record.depth.model()) * track.scale if kept
                  else None)
@@ -604,15 +582,15 @@ class StreamingEngine:
             self._ba.fold_in(track)
             if to_ba:
                 self._feed.offer(record, depth, track, self._lens.calibrated(frame))
-        with self._stage(STAGE_TRACK):
+        with self._stage(stage_timing.STAGE_TRACK):
             best = track.best(frame.index)
-        with self._stage(STAGE_PLACEMENT):
+        with self._stage(stage_timing.STAGE_PLACEMENT):
             fields = self._placement.fields(record.hands, best)
         result = FrameResult(timestamp_ns=frame.timestamp_ns, frame_index=frame.index,
                              intrinsics=record.intrinsics, is_keyframe=frame.keyframe,
                              depth=depth, hand_source=self._hand_source.name,
                              provisional_intrinsics=frame.provisional_lens, **fields)
-        with self._stage(STAGE_OUTPUT):
+        with self._stage(stage_timing.STAGE_OUTPUT):
             return self._output.apply(result)
 
     def _scale_samples_of(self, record: CameraSpaceFrame, depth_kept: bool
@@ -620,9 +598,3 @@ class StreamingEngine:
         """Return the metric-scale samples of a frame's hands (``scale_samples``)."""
         return scale_samples(record, depth_kept, self.pose_track.scale_state == 'warmup',
                              self.config.metric_scale.sample_interval, self._scale_correction)
-
-    def _checkpoint_name(self) -> str:
-        """Return what the weights came from, for error messages."""
-        checkpoint = self.config.model.checkpoint
-        return (f'checkpoint {checkpoint}' if checkpoint is not None
-                else f'seeded untrained weights (seed {self.config.model.seed})')
