@@ -2,11 +2,11 @@
 
 A fixed camera whose hands come from outside the model needs the model only for its lens. With
 ``lens_warmup: beside`` (live) its first frames go out at once with a provisional lens (flagged
-``provisional_intrinsics`` in their results): the median of the predictions made so far, or
-before the first one a nominal field of view (``NOMINAL_HFOV_DEG``). Meanwhile a worker thread
-predicts the intrinsics of one frame at a time (the newest offered while it was busy), each on
-its own, until ``wanted`` predictions are in; their median is then the stream's lens
-(``settled``). With ``first`` (offline: results that do not depend on timing) the first
+``provisional_intrinsics`` in their results): the median of the predictions made so far, or before
+the first one a nominal field of view (``NOMINAL_HFOV_DEG``). Meanwhile a worker thread predicts
+the intrinsics of one frame at a time (the newest offered while it was busy), each on its own and
+at most a third of the time, until ``wanted`` predictions are in; their median is then the stream's
+lens (``settled``). With ``first`` (offline: results that do not depend on timing) the first
 ``wanted`` frames are predicted in the caller's thread instead, each given the median so far.
 """
 
@@ -15,6 +15,7 @@ from concurrent.futures import Future
 from concurrent.futures import ThreadPoolExecutor
 import math
 import threading
+import time
 from typing import Final
 
 from infinihand_ros.core.datatypes import Intrinsics
@@ -22,6 +23,9 @@ import numpy as np
 
 #: The horizontal field of view of the lens given before the first prediction (a webcam's).
 NOMINAL_HFOV_DEG: Final = 60.0
+#: Beside the stream the worker predicts at most this share of the time (it rests twice as
+#: long as a prediction took), so the hand source keeps the machine's cores for the stream.
+BUSY_SHARE: Final = 1.0 / 3.0
 
 
 def nominal_intrinsics(width: int, height: int) -> Intrinsics:
@@ -95,7 +99,8 @@ class LensWarmup:
             self._worker.shutdown(wait=True)
 
     def _run(self, image: np.ndarray) -> None:
-        """Predict one frame's intrinsics; settle once enough came."""
+        """Predict one frame's intrinsics; settle once enough came (then rest, beside)."""
+        start = time.perf_counter()
         intrinsics = self._predict(image)
         with self._lock:
             if self.settled is not None:
@@ -103,6 +108,9 @@ class LensWarmup:
             self._predicted.append(intrinsics)
             if len(self._predicted) >= self._wanted:
                 self.settled = _median(self._predicted)
+                return
+        if self._beside:
+            time.sleep((time.perf_counter() - start) * (1.0 / BUSY_SHARE - 1.0))
 
 
 def _median(predicted: list[Intrinsics]) -> Intrinsics:

@@ -4,8 +4,10 @@ A hand source that reads images (MediaPipe, or the hand branch's verifier) gets 
 image in one worker thread, so the detection runs while the model runs on the frame; the frame
 holds the future (``PreparedFrame.detections``). For a fixed camera a live caller can start it
 earlier, when the image arrives (``read_ahead``): the hands of the next frame are then read
-while the last one is still being finished and published. Reads started ahead for images never
-pushed (replaced by newer ones) are dropped at the next push.
+while the last one is still being finished and published. A read started ahead that has not
+begun when a newer image arrives is cancelled (that image is never pushed: the newer one replaces
+it), so reads never queue up behind a camera faster than the source; one already running is
+dropped at the next push.
 """
 
 from collections.abc import Callable
@@ -53,6 +55,7 @@ class HandReader:
             if (last_ns is not None and timestamp_ns <= last_ns) or any(
                     stamp >= timestamp_ns for stamp in self._ahead):
                 return False
+            self._cancel_before(timestamp_ns)  # images a newer one replaces: never pushed
             try:
                 self._ahead[timestamp_ns] = self._worker.submit(self._detect, image.copy(),
                                                                 index)
@@ -67,11 +70,21 @@ class HandReader:
         """
         with self._lock:
             ahead = self._ahead.pop(timestamp_ns, None)
+            self._cancel_before(timestamp_ns)
             for stamp in [stamp for stamp in self._ahead if stamp < timestamp_ns]:
-                del self._ahead[stamp]
+                del self._ahead[stamp]  # started already: its result is dropped
         if ahead is not None:
             return ahead
         return self._worker.submit(self._detect, image.copy(), index)
+
+    def _cancel_before(self, timestamp_ns: int) -> None:
+        """Cancel the reads started ahead for older stamps that have not started (lock held).
+
+        An image arriving faster than the source reads would otherwise queue up behind them.
+        """
+        for stamp in [stamp for stamp in self._ahead if stamp < timestamp_ns]:
+            if self._ahead[stamp].cancel():
+                del self._ahead[stamp]
 
     def drain(self) -> None:
         """Drop the reads started ahead and wait for the queued ones (reset, close)."""
