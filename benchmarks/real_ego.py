@@ -11,13 +11,17 @@ no intrinsics given, and the final trajectory (what the converter writes) is sco
   either side; the written world joints projected through the written camera pose and
   intrinsics against MediaPipe's landmarks (per hand the median joint distance over the size of
   MediaPipe's landmark box; median and 90th percentile over hands); written hands where
-  MediaPipe alone finds none on that side.
+  MediaPipe alone finds none on that side;
+- cost: the engine's wall time from the first frame to the final trajectory (BA and the
+  whole-episode refinement included; compare with ``--no-ba``), and the whole-episode
+  refinement's verdict.
 """
 
 import argparse
 from dataclasses import replace
 import json
 from pathlib import Path
+import time
 
 from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.run import engine_config_for
@@ -40,17 +44,22 @@ def run(folder: Path, with_ba: bool) -> dict:
     config = engine_config_for(load_convert_config())
     if not with_ba:
         config = replace(config, bundle_adjustment=None)
+    frames = list(clip.frames())
     with StreamingEngine(config) as engine:
+        start = time.perf_counter()
         live = []
-        for image, stamp in clip.frames():
+        for image, stamp in frames:
             live += engine.push(image, stamp, None)
         final = engine.refined(live + engine.flush())
+        seconds = time.perf_counter() - start
+        ba = engine.statistics['ba']
     focal = float(np.median([result.intrinsics.fx for result in final]))
     report = {'clip': clip.name, 'frames': len(final),
               'camera': reference_scores(np.stack([r.camera_pose.matrix() for r in final]),
                                          clip),
               'focal_px': focal, 'sfm_focal_px': clip.intrinsics.fx,
-              'focal_error_pct': 100.0 * (focal / clip.intrinsics.fx - 1.0)}
+              'focal_error_pct': 100.0 * (focal / clip.intrinsics.fx - 1.0),
+              'seconds': seconds, 'episode': None if ba is None else ba.get('episode')}
     report['hands'] = hand_scores(final, mediapipe_hands(folder))
     return report
 
@@ -91,15 +100,23 @@ def main() -> None:
     print(f"bag_to_dataset settings (BA {'off' if args.no_ba else 'on'}), final trajectory, "
           'no intrinsics given')
     print('| clip | ATE (% path) | rel. rot. median (deg) | focal (px) vs SfM | MediaPipe hands | '
-          'found same side | either side | reprojection median / p90 (box) | not in MediaPipe |')
-    print('|---|---|---|---|---|---|---|---|---|')
+          'found same side | either side | reprojection median / p90 (box) | not in MediaPipe | '
+          'engine (s) |')
+    print('|---|---|---|---|---|---|---|---|---|---|')
     for r in reports:
         c, h = r['camera'], r['hands']
         print(f"| {r['clip']} | {c['ate_pct']:.1f} | {c['rre_median_deg']:.3f} | "
               f"{r['focal_px']:.0f} vs {r['sfm_focal_px']:.0f} ({r['focal_error_pct']:+.1f} %) | "
               f"{h['mediapipe_hands']} | {100 * h['found_same_side']:.0f} % | "
               f"{100 * h['found_either_side']:.0f} % | {h['reprojection_median']:.3f} / "
-              f"{h['reprojection_p90']:.3f} | {h['not_in_mediapipe']} |")
+              f"{h['reprojection_p90']:.3f} | {h['not_in_mediapipe']} | {r['seconds']:.1f} |")
+    for r in reports:
+        if r['episode']:
+            e = r['episode']
+            print(f"{r['clip']}: whole-episode refinement "
+                  f"{'accepted' if e['accepted'] else 'refused'} ({e['reason']}); largest "
+                  f"keyframe move {e['max_move_m']:.4f} m, bound {e['move_bound_m']:.4f} m; "
+                  f"{e['seconds']:.2f} s")
 
 
 if __name__ == '__main__':

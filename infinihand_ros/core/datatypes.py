@@ -275,6 +275,8 @@ class FrameResult:
             raised, the BA process died) or was rejected by its held-out check, so its pose
             lacks that refinement; set on the final trajectory (``StreamingEngine.refined``),
             False on live results.
+        episode_refined: the pose carries the accepted whole-episode bundle adjustment of an
+            offline run (``ba/episode.py``); set on the final trajectory, False otherwise.
 
     """
 
@@ -291,6 +293,7 @@ class FrameResult:
     hand_source: str = 'infinihand'
     tracking: str = 'predicted'
     ba_failed: bool = False
+    episode_refined: bool = False
 
     def __post_init__(self) -> None:
         sides = [hand.side for hand in self.hands]
