@@ -64,7 +64,7 @@ class InProcessBA:
         self.episode = EpisodeKeyframes(episode.max_keyframes) if episode.enabled else None
         self.episode_result: EpisodeRefinement | None = None
         self._lens: StreamLens | None = None  # the accepted calls' lens
-        self._episode_ids: frozenset[int] = frozenset()  # keyframes the episode refined
+        self._episode_span: tuple[int, int] | None = None  # frames the episode refined
 
     def offer(self, keyframe: KeyframeInput) -> None:
         """Feed a keyframe to the pool; a triggered selection goes to the worker (no wait)."""
@@ -127,7 +127,7 @@ class InProcessBA:
         if refinement.accepted:
             track.update_corrections(refinement.timestamps_ns, refinement.T_refined,
                                      np.stack(T_raw), track.scale)
-            self._episode_ids = frozenset(keyframe.frame_id for keyframe in kept)
+            self._episode_span = (kept[0].frame_id, kept[-1].frame_id)
         return refinement
 
     def episode_refined(self) -> bool:
@@ -137,9 +137,14 @@ class InProcessBA:
     def failed_frames(self) -> frozenset[int]:
         """Return the frames whose last BA call failed (solver error, BA process died).
 
-        The whole-episode refinement, where accepted, is the last call over its keyframes.
+        The whole-episode refinement, where accepted, replaces every correction between its
+        first and last keyframes: no frame there lacks a refinement.
         """
-        return self.ba.worker.failed_frame_ids - self._episode_ids
+        failed = self.ba.worker.failed_frame_ids
+        if self._episode_span is None:
+            return failed
+        first, last = self._episode_span
+        return frozenset(frame for frame in failed if not first <= frame <= last)
 
     def statistics(self) -> dict[str, object]:
         """Return the BA worker's state, its counters and last error, and the results folded in.

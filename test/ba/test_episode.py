@@ -58,8 +58,8 @@ def test_the_decrease_is_measured_against_the_spread_between_tracks() -> None:
     track = np.repeat(np.arange(50), 2)
     assert decrease_z(np.ones(100), np.zeros(100), track) == np.inf
     noisy = np.where(track % 2 == 0, 1.5, -0.5)  # +-1 around a mean decrease of 0.5
-    assert decrease_z(noisy, np.zeros(100), track) == pytest.approx(0.5 / (1.0 / np.sqrt(49)),
-                                                                     rel=1e-6)
+    expected = 0.5 * np.sqrt(49)  # the mean over its standard error, 1 / sqrt(49)
+    assert decrease_z(noisy, np.zeros(100), track) == pytest.approx(expected, rel=1e-6)
 
 
 def test_the_kept_keyframes_stay_spread_over_the_episode() -> None:
