@@ -17,6 +17,9 @@ no intrinsics given, and the final trajectory (what the converter writes) is sco
   that side;
 - the converter's accounting of the hands its own MediaPipe found: written, or dropped for a
   named reason (``convert/hand_accounting.py``).
+- cost: the engine's wall time from the first frame to the final trajectory (BA and the
+  whole-episode refinement included; compare with ``--no-ba``), and the whole-episode
+  refinement's verdict.
 """
 
 import argparse
@@ -24,6 +27,7 @@ from dataclasses import asdict
 from dataclasses import replace
 import json
 from pathlib import Path
+import time
 
 from infinihand_ros.convert.config import load_convert_config
 from infinihand_ros.convert.hand_accounting import account_hands
@@ -51,19 +55,24 @@ def run(folder: Path, with_ba: bool) -> dict:
     config = engine_config_for(load_convert_config())
     if not with_ba:
         config = replace(config, bundle_adjustment=None)
+    frames = list(clip.frames())
     with StreamingEngine(config) as engine:
         source_before = engine.statistics['hands']
+        start = time.perf_counter()
         live = []
-        for image, stamp in clip.frames():
+        for image, stamp in frames:
             live += engine.push(image, stamp, None)
         final = engine.refined(live + engine.flush())
         source_after = engine.statistics['hands']
+        seconds = time.perf_counter() - start
+        ba = engine.statistics['ba']
     focal = float(np.median([result.intrinsics.fx for result in final]))
     report = {'clip': clip.name, 'frames': len(final),
               'camera': reference_scores(np.stack([r.camera_pose.matrix() for r in final]),
                                          clip),
               'focal_px': focal, 'sfm_focal_px': clip.intrinsics.fx,
-              'focal_error_pct': 100.0 * (focal / clip.intrinsics.fx - 1.0)}
+              'focal_error_pct': 100.0 * (focal / clip.intrinsics.fx - 1.0),
+              'seconds': seconds, 'episode': None if ba is None else ba.get('episode')}
     report['hands'] = hand_scores(final, mediapipe_hands(folder))
     report['arm'] = arm_scores(final, mediapipe_labelled(folder))
     values = [frame_values(result, 0.0) for result in final]
@@ -109,15 +118,23 @@ def main() -> None:
     print(f"bag_to_dataset settings (BA {'off' if args.no_ba else 'on'}), final trajectory, "
           'no intrinsics given')
     print('| clip | ATE (% path) | rel. rot. median (deg) | focal (px) vs SfM | MediaPipe hands | '
-          'found same side | either side | reprojection median / p90 (box) | not in MediaPipe |')
-    print('|---|---|---|---|---|---|---|---|---|')
+          'found same side | either side | reprojection median / p90 (box) | not in MediaPipe | '
+          'engine (s) |')
+    print('|---|---|---|---|---|---|---|---|---|---|')
     for r in reports:
         c, h = r['camera'], r['hands']
         print(f"| {r['clip']} | {c['ate_pct']:.1f} | {c['rre_median_deg']:.3f} | "
               f"{r['focal_px']:.0f} vs {r['sfm_focal_px']:.0f} ({r['focal_error_pct']:+.1f} %) | "
               f"{h['mediapipe_hands']} | {100 * h['found_same_side']:.0f} % | "
               f"{100 * h['found_either_side']:.0f} % | {h['reprojection_median']:.3f} / "
-              f"{h['reprojection_p90']:.3f} | {h['not_in_mediapipe']} |")
+              f"{h['reprojection_p90']:.3f} | {h['not_in_mediapipe']} | {r['seconds']:.1f} |")
+    for r in reports:
+        if r['episode']:
+            e = r['episode']
+            print(f"{r['clip']}: whole-episode refinement "
+                  f"{'accepted' if e['accepted'] else 'refused'} ({e['reason']}); largest "
+                  f"keyframe move {e['max_move_m']:.4f} m, bound {e['move_bound_m']:.4f} m; "
+                  f"{e['seconds']:.2f} s")
     print()
     print('| clip | MediaPipe alone: arm decides | MediaPipe labels it so | ours on that side | '
           'frames MediaPipe labels two hands alike | our MediaPipe: found | written | dropped |')

@@ -204,6 +204,43 @@ class CorrectionConfig:
 
 
 @dataclass(frozen=True)
+class EpisodeConfig:
+    """One refinement of the whole episode after an offline stream ends (``ba.episode``).
+
+    Attributes:
+        enabled: refine the episode as a whole when the stream settles (offline runs); the
+            keyframes are kept for it.
+        max_keyframes: keyframes kept for it, spread over the episode: past this many every
+            other one is dropped and only every other later one kept (bounded memory and time).
+        min_gain: it is used only where it lowers the held-out cost by at least this share of
+            the start's, in [0, 1) ...
+        min_z: ... and by at least this many standard errors of that decrease (over the
+            held-out tracks): a gain the images show, not noise.
+        max_move_share: and no keyframe moves further than this share of the episode's path
+            (or than the images can see at all, ``ba.episode``).
+        irls_iterations: most Huber (IRLS) iterations of its solve (``ba.solver``'s other
+            settings hold): solved once, offline, it may run to convergence.
+
+    """
+
+    enabled: bool = False
+    max_keyframes: int = 64
+    min_gain: float = 0.05
+    min_z: float = 3.0
+    max_move_share: float = 0.25
+    irls_iterations: int = 12
+
+    def __post_init__(self) -> None:
+        owner = 'ba.episode'
+        _require_finite_fields(owner, self)
+        require_at_least(owner, 2, max_keyframes=self.max_keyframes)
+        require_at_least(owner, 0, irls_iterations=self.irls_iterations)
+        require_at_least(owner, 0.0, min_z=self.min_z, max_move_share=self.max_move_share)
+        if not 0.0 <= self.min_gain < 1.0:
+            raise ConfigError(f'{owner}.min_gain: must be in [0, 1), got {self.min_gain!r}')
+
+
+@dataclass(frozen=True)
 class WorkerConfig:
     """How the background BA process shares the machine with the stream.
 
@@ -242,6 +279,7 @@ class BAConfig:
         tracking: the feature tracks between the selected keyframes.
         corrections: how BA's poses are checked and folded back into the stream.
         worker: the background worker (queue length, what happens when it falls behind).
+        episode: the whole-episode refinement when an offline stream ends.
 
     """
 
@@ -250,6 +288,7 @@ class BAConfig:
     tracking: TrackingConfig = field(default_factory=TrackingConfig)
     corrections: CorrectionConfig = field(default_factory=CorrectionConfig)
     worker: WorkerConfig = field(default_factory=WorkerConfig)
+    episode: EpisodeConfig = field(default_factory=EpisodeConfig)
 
 
 def load_ba_config(path: str | Path | None = None) -> BAConfig:

@@ -59,6 +59,12 @@ def held_out_cost(held: BAProblem, T_world_cam: np.ndarray, lens: np.ndarray,
 
     The tracks' inverse depths are fitted first (every pose and the lens held).
     """
+    return float(np.mean(held_out_costs(held, T_world_cam, lens, config)))
+
+
+def held_out_costs(held: BAProblem, T_world_cam: np.ndarray, lens: np.ndarray,
+                   config: SolverConfig) -> np.ndarray:
+    """Return the Huber cost (M,) of each of ``held``'s observations (``held_out_cost``)."""
     depth_only = replace(config, irls_iterations=DEPTH_ITERATIONS, max_iterations=1,
                          gate_px=HUGE_GATE_PX)
     posed = replace(held, T_world_cam=T_world_cam, fixed=np.ones(held.num_frames, dtype=bool),
@@ -70,8 +76,7 @@ def held_out_cost(held: BAProblem, T_world_cam: np.ndarray, lens: np.ndarray,
     rays = costs.host_rays(held.intrinsics, held.host, held.host_xy, state.lens)
     residual = costs.reprojection(state, rays, held.host, held.obs_track, held.obs_frame,
                                   held.obs_xy, held.intrinsics, False).residual
-    error = np.linalg.norm(residual, axis=-1)
-    return float(np.mean(costs.huber_cost(error, config.huber_px)))
+    return costs.huber_cost(np.linalg.norm(residual, axis=-1), config.huber_px)
 
 
 def check_refinement(held: BAProblem, T_refined: np.ndarray, lens_refined: np.ndarray,

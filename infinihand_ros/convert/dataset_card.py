@@ -37,7 +37,9 @@ FEATURE_NOTES: Final = {
                         'camera track restarted here: a discontinuity such as a cut); '
                         'ba_failed (the last bundle-adjustment call over this keyframe failed: '
                         'the solver raised or its process died, so the pose lacks that '
-                        'refinement)'),
+                        'refinement); episode_refined (the pose carries the bundle adjustment '
+                        'of the whole episode, used where it explained held-out feature tracks '
+                        "better than the stream's poses; the report says why when it was not)"),
     feat.HAND_VALID: ('bool', 'the hand was detected and placed in the world; the other hand '
                       'features of an invalid hand hold the fill value'),
     feat.HAND_CONFIDENCE: ('[0, 1]', "the hand source's presence score (kept for invalid "

@@ -238,6 +238,7 @@ def _fill_report(report: EpisodeReport, columns: dict[str, np.ndarray], collecto
         'predicted': int((~flags['tracked'] & ~flags['reinitialised']).sum()),
         'reinitialised': int(flags['reinitialised'].sum())}
     report.ba_failed_frames = int(flags['ba_failed'].sum())
+    report.episode_refined_frames = int(flags['episode_refined'].sum())
     first = source_stamps[0]
     gaps = np.abs(np.array(source_stamps) - np.array(
         [output_time_ns(first, k, config.fps) for k in range(len(source_stamps))])) / NS_PER_S

@@ -14,8 +14,9 @@ that LeRobot policies take exactly those as inputs and targets; the other featur
 ``camera.flags`` marks keyframes (frames in the streaming memory), frames whose pose bundle
 adjustment corrected, frames whose pose was measured in the image (the per-frame tracker, or a
 fixed camera; otherwise the network's motion was used), frames where the camera track
-restarted (a discontinuity, e.g. a cut between scenes) and keyframes whose last
-bundle-adjustment call failed (their poses lack that refinement).
+restarted (a discontinuity, e.g. a cut between scenes), keyframes whose last
+bundle-adjustment call failed (their poses lack that refinement) and frames whose pose carries
+the whole-episode refinement (accepted: it explained held-out tracks better than the stream).
 ``observation.state`` per hand: wrist position (3), wrist rotation as 6D (the first two columns
 of the MANO global orientation matrix, 6), the five fingertips (15).
 """
@@ -52,7 +53,7 @@ MANO_HAND_POSE: Final = 'hands.mano.hand_pose'
 MANO_BETAS: Final = 'hands.mano.betas'
 CAMERA_FLAGS: Final = 'camera.flags'
 CAMERA_FLAG_NAMES: Final = ('keyframe', 'ba_corrected', 'tracked', 'reinitialised',
-                            'ba_failed')
+                            'ba_failed', 'episode_refined')
 SOURCE_STAMP: Final = 'source.stamp_ns'
 #: LeRobot's bookkeeping columns (shape (1,), no names).
 TIMESTAMP: Final = 'timestamp'
@@ -194,6 +195,7 @@ def frame_values(result: FrameResult, fill: float) -> tuple[dict[str, np.ndarray
                                                     atol=BA_CORRECTED_TOL)
     out[CAMERA_FLAGS] = np.array([result.is_keyframe, corrected,
                                   result.tracking in ('tracked', 'static'),
-                                  result.tracking == 'reinitialised', result.ba_failed],
+                                  result.tracking == 'reinitialised', result.ba_failed,
+                                  result.episode_refined],
                                  dtype=np.float64)
     return out, reasons

@@ -37,6 +37,8 @@ class EpisodeReport:
             track restarted ('reinitialised': a discontinuity).
         ba_failed_frames: output frames whose last bundle-adjustment call failed
             (``camera.flags`` ba_failed: their poses lack that refinement).
+        episode_refined_frames: output frames whose pose carries the whole-episode refinement
+            (``camera.flags`` episode_refined; its verdict is ``bundle_adjustment['episode']``).
         source_gaps: output frames farther than ``max_source_gap_s`` from any source frame.
         max_source_gap_s: the largest distance of an output frame to its source frame.
         metric_scale: the engine's final metric-scale estimate.
@@ -59,6 +61,7 @@ class EpisodeReport:
     hands_found: HandAccounting = field(default_factory=HandAccounting)
     camera_tracking: dict[str, int] = field(default_factory=dict)
     ba_failed_frames: int = 0
+    episode_refined_frames: int = 0
     source_gaps: int = 0
     max_source_gap_s: float = 0.0
     metric_scale: float = 1.0
@@ -102,6 +105,14 @@ class EpisodeReport:
             out.append(f"  bundle adjustment: {ba.get('done', 0)} runs done, "
                        f"{ba.get('failed', 0)} failed, {ba.get('dropped', 0)} dropped; "
                        f'{self.ba_failed_frames} output frames flagged ba_failed')
+            episode = ba.get('episode')
+            if episode:
+                verdict = 'accepted' if episode['accepted'] else 'refused'
+                out.append(f"  whole-episode refinement over {episode['keyframes']} keyframes "
+                           f'{verdict} ({self.episode_refined_frames} output frames): '
+                           f"{episode['reason']}; largest keyframe move "
+                           f"{episode['max_move_m']:.4f} m (bound "
+                           f"{episode['move_bound_m']:.4f} m)")
         return out
 
 

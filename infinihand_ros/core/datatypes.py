@@ -278,6 +278,8 @@ class FrameResult:
         provisional_intrinsics: ``intrinsics`` is a provisional lens (a fixed camera's, while
             its lens is still being estimated beside the stream): hands placed with it are
             less certain.
+        episode_refined: the pose carries the accepted whole-episode bundle adjustment of an
+            offline run (``ba/episode.py``); set on the final trajectory, False otherwise.
 
     """
 
@@ -295,6 +297,7 @@ class FrameResult:
     tracking: str = 'predicted'
     ba_failed: bool = False
     provisional_intrinsics: bool = False
+    episode_refined: bool = False
 
     def __post_init__(self) -> None:
         sides = [hand.side for hand in self.hands]

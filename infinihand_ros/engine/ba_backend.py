@@ -44,6 +44,9 @@ class BABackend(Protocol):
     def failed_frames(self) -> frozenset[int]:
         """Return the frames whose last BA call failed (at least those the pose track holds)."""
 
+    def episode_refined(self) -> bool:
+        """Return whether ``settle`` refined the whole episode into the track's poses."""
+
     def statistics(self) -> dict[str, object]:
         """Return the backend's state and counters for diagnostics and reports."""
 

@@ -79,6 +79,10 @@ class RemoteBA:
         """Return no frames: the BA node's messages do not name the frames of failed calls."""
         return frozenset()
 
+    def episode_refined(self) -> bool:
+        """Return False: the BA node refines windows of the stream, never the whole episode."""
+        return False
+
     def statistics(self) -> dict[str, object]:
         """Return the counters (the transport reports the link's state)."""
         with self._lock:

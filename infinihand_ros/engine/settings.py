@@ -38,7 +38,8 @@ import yaml
 
 #: Bundle adjustment as an offline run wants it: every pool selection refined (the stream waits).
 OFFLINE_BA: Final[dict[str, Any]] = {'bundle_adjustment': True,
-                                     'bundle_adjustment.worker.when_behind': 'wait'}
+                                     'bundle_adjustment.worker.when_behind': 'wait',
+                                     'bundle_adjustment.episode.enabled': True}
 #: What each use changes from the defaults (which are ``live``'s), as dotted keys.
 PROFILES: Final[dict[str, dict[str, Any]]] = {
     'live': {},

@@ -320,13 +320,12 @@ class StreamingEngine:
                 timeout_s: float | None = None) -> list[FrameResult]:
         """Return ``results`` on the final trajectory, for offline runs (after ``flush()``).
 
-        Waits for the BA calls still queued (all of them with ``ba.worker.when_behind: wait``;
-        at most ``timeout_s``), then gives every frame the pose the track holds now: all BA
-        corrections, none blended in, and the final metric scale, with its hands and depth
-        placed again, and ``ba_failed`` where the frame's last BA call failed. Live results are
-        what was known when each frame was published; these are what is known at the end.
-        Without BA only the scale changes. Frames older than the track's
-        ``pose_track.capacity`` are returned unchanged.
+        Waits for the BA calls still queued (at most ``timeout_s``) and, with
+        ``ba.episode.enabled``, refines the whole episode once, then gives every frame the pose
+        the track holds now (all BA corrections, the final metric scale) with its hands and
+        depth placed again, ``ba_failed`` where its last BA call failed and ``episode_refined``
+        where it carries the accepted whole-episode refinement. Without BA only the scale
+        changes. Frames older than the track's ``pose_track.capacity`` are returned unchanged.
 
         Raises:
             EngineStateError: after ``close()`` or when another thread is inside the engine.
@@ -334,21 +333,21 @@ class StreamingEngine:
         """
         with self._exclusive():
             self._pay_geometry()
-            failed: frozenset[int] = frozenset()
+            failed, episode = frozenset(), False
             if self._ba is not None:
                 self._ba.settle(self.pose_track, timeout_s)
-                failed = self._ba.failed_frames()
-            return [self._on_final_trajectory(result, failed) for result in results]
+                failed, episode = self._ba.failed_frames(), self._ba.episode_refined()
+            return [self._on_final_trajectory(result, failed, episode) for result in results]
 
-    def _on_final_trajectory(self, result: FrameResult,
-                             ba_failed: frozenset[int]) -> FrameResult:
+    def _on_final_trajectory(self, result: FrameResult, ba_failed: frozenset[int],
+                             episode_refined: bool) -> FrameResult:
         """Return ``result`` placed with the track's current (not live) pose and scale."""
         try:
             best = self.pose_track.best(result.frame_index, live=False)
         except KeyError:  # no longer in the track
             return result
-        return self._placement.on_final_trajectory(result, best,
-                                                   result.frame_index in ba_failed)
+        return self._placement.on_final_trajectory(
+            result, best, result.frame_index in ba_failed, episode_refined)
 
     def fold_in_ba(self) -> None:
         """Fold finished bundle-adjustment results into the pose track now (between frames).

@@ -72,15 +72,17 @@ class WorldPlacement:
                 'pose_version': best.version,
                 'tracking': 'static' if self.static else best.tracking}
 
-    def on_final_trajectory(self, result: FrameResult, best: TrackedPose,
-                            ba_failed: bool) -> FrameResult:
+    def on_final_trajectory(self, result: FrameResult, best: TrackedPose, ba_failed: bool,
+                            episode_refined: bool = False) -> FrameResult:
         """Return ``result`` with the pose, scale and hands of ``best`` (the final trajectory).
 
         The output stage's identity and shared shape are kept; its smoothing (of the live
-        world-frame joints) is not, as the hands are placed again. Its depth is rescaled to
-        ``best``'s metric scale; ``ba_failed`` flags a frame whose last BA call failed.
+        world-frame joints) is not, as the hands are placed again with ``best``'s pose, the
+        one written. Its depth is rescaled to ``best``'s metric scale; ``ba_failed`` flags a
+        frame whose last BA call failed, ``episode_refined`` one whose pose carries the
+        whole-episode refinement.
         """
         depth = (None if result.depth is None
                  else result.depth * (best.scale / result.metric_scale))
         return replace(result, depth=depth, ba_failed=ba_failed,
-                       **self.fields(result.hands, best))
+                       episode_refined=episode_refined, **self.fields(result.hands, best))

@@ -128,7 +128,7 @@ def test_bags_convert_and_read_back(synth_bags: list[Path], tmp_path: Path) -> N
     assert reports[0]['frames_in'] == 6 and reports[0]['frames_out'] == 6
     found = reports[0]['hands_found']  # every hand found is written or dropped for a reason
     assert found['found'] == found['written'] + sum(found['dropped'].values())
-    # keyframe, ba_corrected, tracked, reinitialised, ba_failed
+    # keyframe, ba_corrected, tracked, reinitialised, ba_failed, episode_refined
     flags = np.array(data['camera.flags'], dtype=bool)
     tracking = reports[0]['camera_tracking']
     first = flags[:6]
@@ -137,6 +137,7 @@ def test_bags_convert_and_read_back(synth_bags: list[Path], tmp_path: Path) -> N
                         'reinitialised': int(first[:, 3].sum())}
     assert tracking['tracked'] >= 1  # the first frame at least: it defines the world
     assert not flags[:, 4].any() and reports[0]['ba_failed_frames'] == 0  # BA is off
+    assert not flags[:, 5].any() and reports[0]['episode_refined_frames'] == 0
 
 
 @pytest.mark.slow

@@ -76,20 +76,24 @@ def test_camera_flags_mark_keyframes_ba_corrections_and_tracking() -> None:
 
     keyframe as the engine said; ba_corrected only when BA moved the pose; tracked when the
     pose was measured (or the camera is fixed); reinitialised where the track restarted;
-    ba_failed where the frame's last BA call failed.
+    ba_failed where the frame's last BA call failed; episode_refined where the pose carries
+    the whole-episode refinement.
     """
     intrinsics = Intrinsics(1, 1, 0, 0, 2, 2)
     moved = CameraPose(np.eye(3), np.array([0.0, 0.0, 0.01]))
-    cases = [(FrameResult(1, 0, CameraPose.identity(), intrinsics), [0, 0, 0, 0, 0]),
+    cases = [(FrameResult(1, 0, CameraPose.identity(), intrinsics), [0, 0, 0, 0, 0, 0]),
              (FrameResult(1, 0, moved, intrinsics, is_keyframe=True,
-                          raw_camera_pose=moved, tracking='tracked'), [1, 0, 1, 0, 0]),
+                          raw_camera_pose=moved, tracking='tracked'), [1, 0, 1, 0, 0, 0]),
              (FrameResult(1, 0, moved, intrinsics, raw_camera_pose=CameraPose.identity(),
-                          tracking='reinitialised'), [0, 1, 0, 1, 0]),
-             (FrameResult(1, 0, moved, intrinsics, tracking='static'), [0, 0, 1, 0, 0]),
+                          tracking='reinitialised'), [0, 1, 0, 1, 0, 0]),
+             (FrameResult(1, 0, moved, intrinsics, tracking='static'), [0, 0, 1, 0, 0, 0]),
              (FrameResult(1, 0, moved, intrinsics, is_keyframe=True, raw_camera_pose=moved,
-                          tracking='tracked', ba_failed=True), [1, 0, 1, 0, 1])]
+                          tracking='tracked', ba_failed=True), [1, 0, 1, 0, 1, 0]),
+             (FrameResult(1, 0, moved, intrinsics, raw_camera_pose=CameraPose.identity(),
+                          episode_refined=True), [0, 1, 0, 0, 0, 1])]
     for result, flags in cases:
         values, _ = features.frame_values(result, fill=0.0)
         assert values[features.CAMERA_FLAGS].tolist() == flags
     assert _spec(features.CAMERA_FLAGS).names == ('keyframe', 'ba_corrected', 'tracked',
-                                                  'reinitialised', 'ba_failed')
+                                                  'reinitialised', 'ba_failed',
+                                                  'episode_refined')
