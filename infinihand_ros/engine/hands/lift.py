@@ -36,9 +36,6 @@ import numpy as np
 
 #: Root depths searched, metres (hands from touching the lens to across a room).
 DEPTH_RANGE_M: Final = (0.05, 5.0)
-#: Passes turning the bones towards the landmarks' viewing rays (each kept only if it lowers
-#: the pixel error): MediaPipe's metric joints give the pose, its 2D landmarks refine it.
-RAY_PASSES: Final = 2
 #: Depths per grid of the root-depth search, and finer grids after the first.
 DEPTH_GRID: Final = 48
 DEPTH_REFINEMENTS: Final = 2
@@ -126,7 +123,8 @@ def _lateral_translation(lateral_joints: np.ndarray, z: np.ndarray, centred: np.
 
 def lift_hand(side: int, landmarks_px: np.ndarray, joints_metric: np.ndarray,
               confidence: float, intrinsics: Intrinsics, model: HandModel,
-              previous: ManoParams | None = None, refine_iterations: int = 0) -> LiftedHand:
+              previous: ManoParams | None = None, refine_iterations: int = 0,
+              ray_passes: int = 8) -> LiftedHand:
     """Return the camera-space MANO hand of one detection.
 
     Args:
@@ -139,6 +137,9 @@ def lift_hand(side: int, landmarks_px: np.ndarray, joints_metric: np.ndarray,
         previous: the same hand's parameters in the previous frame: its shape is kept (the
             pose needs no start: the closed-form fit is this frame's own).
         refine_iterations: L-BFGS steps of ``fit_mano`` after the closed-form start (0: none).
+        ray_passes: passes turning the bones towards the landmarks' viewing rays at the depths
+            found (each kept only if it lowers the pixel error): MediaPipe's metric joints give
+            the pose, its 2D landmarks refine it.
 
     """
     betas = None if previous is None else previous.betas
@@ -152,7 +153,7 @@ def lift_hand(side: int, landmarks_px: np.ndarray, joints_metric: np.ndarray,
         rest = rest_joints(model, params.betas)
     relative = model_joints(model, params) - params.transl
     shift, error_px = place_by_projection(relative, landmarks_px, intrinsics)
-    for _ in range(RAY_PASSES):  # bones towards the landmarks' rays at the depths found
+    for _ in range(ray_passes):  # bones towards the landmarks' rays at the depths found
         rays = _back_project(landmarks_px, (relative + shift)[:, 2], intrinsics)
         candidate = inverse_kinematics(model, rays, params.betas, rest)
         moved = model_joints(model, candidate) - candidate.transl

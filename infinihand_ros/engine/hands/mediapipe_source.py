@@ -80,7 +80,8 @@ class MediaPipeHandSource:
         for found in decision.hands:
             lifted = lift_hand(found.side, found.joints_2d, found.joints_metric, found.confidence,
                                intrinsics, self._models[found.side],
-                               self._previous.get(found.side), self.config.refine_iterations)
+                               self._previous.get(found.side), self.config.refine_iterations,
+                               self.config.ray_passes)
             self._previous[found.side] = lifted.hand.mano_cam
             self.reprojection_ratios.append(lifted.reprojection_px /
                                             max(lifted.box_size_px, 1.0))

@@ -3,7 +3,7 @@
 Parameter ``smoothing.beta`` is field ``beta`` of ``EstimatorConfig.smoothing``. The tree owns
 every parameter: default, description, range and choices (``core.parameters``); the node
 declares them from it, and ``config/estimator.yaml`` is generated from it
-(``python -m infinihand_ros.ros.params_files --write``; a test fails when they differ).
+(``python -m infinihand_ros.tools.params_files --write``; a test fails when they differ).
 ``estimator_config_from_parameters`` builds and checks the tree from flat parameter values,
 raising ``ConfigError`` that names the parameter. ``engine.*`` name the engine's settings
 (profile, file, overrides); ``hands.*``, ``identity.*``, ``shape.*`` and ``smoothing.*`` are the
