@@ -5,8 +5,8 @@
 Real-texture streams (``synth/motion_streams.py``) from ``../shared/data``: crop videos of
 real hand photos (``--photos`` of them) turning fast to and fro (0.3 of the view per frame,
 blurred over half the shift) and turning away from the hand for four frames and back; the
-ego4d_stove clip as it is, with eight frames motion-blurred (15 or 31 px) and with its hands
-removed on five frames; ego4d_counter at every fourth frame (a fast pan), each frame blurred
+ego4d_stove clip as it is, with eight frames motion-blurred (15 or 31 px), with its hands
+removed on five frames and with one of them removed on four; ego4d_counter at every fourth frame (a fast pan), each frame blurred
 31 px. Each stream runs through our detector (``engine/hands/mediapipe_detector.py``, the
 engine's settings) and MediaPipe alone (video mode, two hands, on every frame). Per kind of
 stream: the scene cuts our detector declares (none of these streams has one), hands found
@@ -34,8 +34,10 @@ from infinihand_ros.synth.motion_streams import shaken_crops
 import numpy as np
 
 DATA = Path(__file__).resolve().parents[2] / 'shared' / 'data'
-#: Hands removed on ego4d_stove frames 20-24; the photo turned away on its frames 4-7.
+#: Hands removed on ego4d_stove frames 20-24; one hand on frames 12-15 (the right one) or 40-43
+#: (the left one); the photo turned away on its frames 4-7.
 HIDDEN = (20, 5)
+ONE_HIDDEN = (12, 4, 40)
 AWAY = (4, 4)
 
 
@@ -73,6 +75,12 @@ def _one_hand_photos(count: int) -> list[tuple]:
     return photos
 
 
+def _one_side(hands: list[list[np.ndarray]], right: bool) -> list[list[np.ndarray]]:
+    """Return per frame the hand on the image's right (or left) half, if any (384 px wide)."""
+    return [[joints for joints in frame if (joints[:, 0].mean() > 192) == right][:1]
+            for frame in hands]
+
+
 def streams(photos: int) -> dict[str, list[Stream]]:
     """Return the benchmark's streams by kind (see the module docstring)."""
     stills = _one_hand_photos(photos)
@@ -92,6 +100,11 @@ def streams(photos: int) -> dict[str, list[Stream]]:
         'ego4d_stove, 8 frames blurred 31 px': [Stream(blurred_run(stove, 20, 8, 31, 20.0))],
         f'ego4d_stove, hands hidden {HIDDEN[1]} frames': [
             Stream(hands_hidden(stove, stove_hands, *HIDDEN), sum(HIDDEN), stove)],
+        f'ego4d_stove, one hand hidden {ONE_HIDDEN[1]} frames (right at {ONE_HIDDEN[0]}, '
+        f'left at {ONE_HIDDEN[2]})': [
+            Stream(hands_hidden(stove, _one_side(stove_hands, right), start, ONE_HIDDEN[1]),
+                   start + ONE_HIDDEN[1], stove)
+            for right, start in ((True, ONE_HIDDEN[0]), (False, ONE_HIDDEN[2]))],
         'ego4d_counter, every 4th frame, blurred 31 px': [
             Stream(blurred_run(counter[::4], 0, len(counter[::4]), 31))]}
 
