@@ -2,17 +2,18 @@
 
     python benchmarks/hands_through_motion.py [--photos N] [--json]
 
-Real-texture streams (``synth/motion_streams.py``) from ``../shared/data``: crop videos of
-real hand photos (``--photos`` of them) turning fast to and fro (0.3 of the view per frame,
-blurred over half the shift) and turning away from the hand for four frames and back; the
-ego4d_stove clip as it is, with eight frames motion-blurred (15 or 31 px), with its hands
-removed on five frames and with one of them removed on four; ego4d_counter at every fourth frame (a fast pan), each frame blurred
-31 px. Each stream runs through our detector (``engine/hands/mediapipe_detector.py``, the
-engine's settings) and MediaPipe alone (video mode, two hands, on every frame). Per kind of
-stream: the scene cuts our detector declares (none of these streams has one), hands found
-(summed over frames) by ours and by MediaPipe alone, frames where MediaPipe alone finds more,
-and per stream with a loss the frames from the hands' return until a frame has as many hands
-as MediaPipe alone finds there without the loss (0: at once).
+Real-texture streams (``synth/motion_streams.py``) from ``../shared/data``: crop videos of real
+hand photos (``--photos`` of them) turning fast to and fro (0.3 of the view per frame, blurred
+over half the shift) and turning away from the hand for four frames and back; the ego4d_stove
+clip as it is, with eight frames motion-blurred (15 or 31 px), with its hands removed on five
+frames and with one of them removed on four; ego4d_counter at every fourth frame (a fast pan),
+each frame blurred 31 px. Each stream runs through our detector
+(``engine/hands/mediapipe_detector.py``, the engine's settings) and MediaPipe alone (video
+mode, two hands, on every frame). Per kind of stream: the scene cuts our detector declares
+(none of these streams has one), hands found (summed over frames) by ours and by MediaPipe
+alone, frames where MediaPipe alone finds more, and per stream with a loss the frames from the
+hands' return until a frame has as many hands as MediaPipe alone finds there without the loss
+(0: at once).
 """
 
 import argparse

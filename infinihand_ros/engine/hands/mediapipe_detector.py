@@ -19,9 +19,10 @@ the image with that hand blanked out, on every frame while it follows a second h
 for ``LOST_SEARCH_FRAMES`` frames after fewer hands were found than on the frame before (a hand
 lost in blur or behind something is found again as soon as it shows). Where the first graph
 loses its hand while the second follows one, the two swap roles; where neither follows a hand
-any more, the image is searched again in the same frame. The second graph runs beside the first (in a
-helper thread; MediaPipe lets go of the GIL), so it looks at the image with the first hand's box
-of the previous image blanked: on two cores a frame costs about one graph's time.
+any more, the image is searched again in the same frame. The second graph runs beside the
+first (in a helper thread; MediaPipe lets go of the GIL), so it looks at the image with the
+first hand's box of the previous image blanked: on two cores a frame costs about one graph's
+time.
 """
 
 from collections.abc import Sequence
