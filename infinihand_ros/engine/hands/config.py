@@ -41,8 +41,9 @@ class HandsConfig:
                                                'landmark score falls below this.', 0.0, 1.0)
     search_interval: int = parameter(
         3, 'MediaPipe: with one hand tracked, look for a second hand on every this-many-th '
-        'frame only (its palm detector costs about as much as tracking a hand); 1: on every '
-        'frame, as MediaPipe alone does.', 1, 1000)
+        'frame only (its palm detector costs about as much as tracking a hand), and on every '
+        'frame for a few frames after a hand was lost; 1: on every frame, as MediaPipe alone '
+        'does.', 1, 1000)
     refine_iterations: int = parameter(0, 'L-BFGS steps refining the MANO fit of each MediaPipe '
                                        'hand after the closed-form start (0: none).', 0, 1000)
     ray_passes: int = parameter(
@@ -51,8 +52,9 @@ class HandsConfig:
         'closer to the hand in the image, at about 1 ms per pass and hand.', 0, 100)
     scene_cut_distance: float = parameter(
         0.3, "MediaPipe's hand tracking restarts when two consecutive images' hue-saturation "
-        'histograms differ by more than this Bhattacharyya distance (a cut between scenes; '
-        '1: never).', 0.0, 1.0)
+        'histograms differ by more than this Bhattacharyya distance, also once the second is '
+        'shifted onto the first and both are smoothed alike (a cut between scenes, not a fast '
+        'turn or motion blur; 1: never).', 0.0, 1.0)
 
     def __post_init__(self) -> None:
         check_parameters(self, 'hands.')

@@ -6,8 +6,8 @@ and skips the palm detector, as it does for a webcam. MediaPipe reads handedness
 mirrored selfie image; on ordinary images its labels are swapped into ours, with
 ``hands.mirrored`` they are kept. Images larger than ``MAX_SIDE_PX`` are downscaled for
 MediaPipe (its models run at 192-256 px anyway) and the landmarks scaled back. At a cut between
-scenes (consecutive images whose hue-saturation histograms differ by more than
-``hands.scene_cut_distance``) the tracking restarts, so no hand is carried into a new scene.
+scenes (``scene_cut.py``: not a fast turn or a blurred frame of the same scene) the tracking
+restarts, so no hand is carried into a new scene.
 
 MediaPipe's own video mode runs its palm detector on every frame on which it tracks fewer hands
 than it may report, so with one hand in view it pays for a detection and a tracking each frame.
@@ -15,10 +15,14 @@ With ``hands.search_interval`` > 1 the work is split: where no hand is followed,
 image mode detects up to two hands (its palm detector, as the video mode would); from the next
 frame a one-hand graph follows one of them (tracking only) and a second one-hand graph looks at
 the image with that hand blanked out, on every frame while it follows a second hand and on every
-``search_interval``-th frame otherwise (its palm detector runs only then). A hand the first
-graph loses is detected again in the same frame. The second graph runs beside the first (in a
-helper thread; MediaPipe lets go of the GIL), so it looks at the image with the first hand's box
-of the previous image blanked: on two cores a frame costs about one graph's time.
+``search_interval``-th frame otherwise (its palm detector runs only then), and on every frame
+for ``LOST_SEARCH_FRAMES`` frames after fewer hands were found than on the frame before (a hand
+lost in blur or behind something is found again as soon as it shows). Where the first graph
+loses its hand while the second follows one, the two swap roles; where neither follows a hand
+any more, the image is searched again in the same frame. The second graph runs beside the
+first (in a helper thread; MediaPipe lets go of the GIL), so it looks at the image with the
+first hand's box of the previous image blanked: on two cores a frame costs about one graph's
+time.
 """
 
 from collections.abc import Sequence
@@ -35,33 +39,17 @@ from infinihand_ros.engine.hands.config import HandsConfig
 from infinihand_ros.engine.hands.keypoints import Detection2D
 from infinihand_ros.engine.hands.mediapipe_keypoints import MediaPipeConfig
 from infinihand_ros.engine.hands.mediapipe_keypoints import MediaPipeKeypointSource
+from infinihand_ros.engine.hands.scene_cut import SceneCuts
 import numpy as np
 
 #: Longest image side handed to MediaPipe, pixels (larger images are downscaled first).
 MAX_SIDE_PX: Final = 1280
-#: Histogram bins (hue, saturation) and the thumbnail width the scene-cut test uses.
-CUT_BINS: Final = (16, 16)
-CUT_THUMBNAIL_PX: Final = 160
 #: The tracked hand's box, grown by this share of its size per side, is blanked for the search.
 BLANK_MARGIN: Final = 0.25
 #: A searched hand overlapping the tracked one more than this (IoU) is the same hand.
 SAME_HAND_IOU: Final = 0.1
-
-
-def colour_histogram(image: np.ndarray) -> np.ndarray:
-    """Return the normalised hue-saturation histogram of an RGB uint8 image (a thumbnail's)."""
-    height, width = image.shape[:2]
-    if width > CUT_THUMBNAIL_PX:
-        size = (CUT_THUMBNAIL_PX, max(1, round(height * CUT_THUMBNAIL_PX / width)))
-        image = cv2.resize(image, size, interpolation=cv2.INTER_AREA)
-    hsv = cv2.cvtColor(image, cv2.COLOR_RGB2HSV)
-    histogram = cv2.calcHist([hsv], [0, 1], None, list(CUT_BINS), [0, 180, 0, 256])
-    return cv2.normalize(histogram, histogram).ravel()
-
-
-def histogram_distance(first: np.ndarray, second: np.ndarray) -> float:
-    """Return the Bhattacharyya distance of two histograms (0 alike .. 1 disjoint)."""
-    return float(cv2.compareHist(first, second, cv2.HISTCMP_BHATTACHARYYA))
+#: For this many frames after a hand is lost the second graph looks on every frame.
+LOST_SEARCH_FRAMES: Final = 10
 
 
 def blank_box(image: np.ndarray, box: np.ndarray, margin: float = BLANK_MARGIN) -> np.ndarray:
@@ -97,7 +85,9 @@ class MediaPipeDetector:
         self._second_tracked = False  # the second graph follows a hand
         self._first_box: np.ndarray | None = None  # the first graph's hand in the last image
         self._since_search = 0
-        self._histogram: np.ndarray | None = None
+        self._since_lost = LOST_SEARCH_FRAMES  # frames since fewer hands were found than before
+        self._last_count = 0  # hands found in the last image
+        self._cuts = SceneCuts(config.scene_cut_distance)
         self.scene_cuts = 0
         self.cut = False  # the last image followed a cut (tracking restarted)
 
@@ -111,13 +101,10 @@ class MediaPipeDetector:
     def detect(self, image: np.ndarray, frame_index: int) -> Sequence[Detection2D]:
         """Return the hands in an RGB uint8 image, sides in our convention, source pixels."""
         if self.config.scene_cut_distance < 1.0:  # 1: never a cut, nothing to compare
-            histogram = colour_histogram(image)
-            self.cut = (self._histogram is not None and histogram_distance(
-                self._histogram, histogram) > self.config.scene_cut_distance)
+            self.cut = self._cuts.is_cut(image)
             if self.cut:
                 self._restart()
                 self.scene_cuts += 1
-            self._histogram = histogram
         height, width = image.shape[:2]
         scale = min(1.0, MAX_SIDE_PX / max(height, width))
         small = image if scale == 1.0 else cv2.resize(
@@ -135,12 +122,27 @@ class MediaPipeDetector:
         """Return MediaPipe's hands in ``image``, a second one searched for only at intervals."""
         if self._pair is not None:
             return self._pair.detect(image, frame_index)
-        due = self._second_tracked or self._since_search + 1 >= self.config.search_interval
+        found = self._follow(image, frame_index)
+        lost = len(found) < self._last_count
+        self._since_lost = 0 if lost else self._since_lost + 1
+        self._last_count = len(found)
+        return found
+
+    def _follow(self, image: np.ndarray, frame_index: int) -> list[Detection2D]:
+        """Return the two one-hand graphs' hands (or the search's, where they follow none)."""
+        due = (self._second_tracked or self._since_lost < LOST_SEARCH_FRAMES
+               or self._since_search + 1 >= self.config.search_interval)
         beside = (self._helper.submit(self._second.detect, blank_box(image, self._first_box),
                                       frame_index)
                   if self._had_hand and due else None)  # the second graph, beside the first
         found = self._first.detect(image, frame_index) if self._had_hand else []
         seconds = [] if beside is None else beside.result()
+        if not found and seconds:  # the first graph lost its hand, the second has one
+            self._first, self._second = self._second, self._first
+            self._first_box = landmark_box(seconds[0].joints_2d)
+            self._second_tracked = False
+            self._since_search = 0
+            return seconds
         if not found:  # nothing followed, or lost since the last image: detect in this one
             found = self._search.detect(image, frame_index)
             self._had_hand, self._second_tracked = bool(found), len(found) > 1
@@ -160,7 +162,7 @@ class MediaPipeDetector:
     def reset(self) -> None:
         """Forget the tracked hands and the last image (a new stream)."""
         self._restart()
-        self._histogram = None
+        self._cuts.reset()
         self.cut = False
 
     def _restart(self) -> None:
@@ -174,7 +176,8 @@ class MediaPipeDetector:
             self._first, self._second = self._start(max_num_hands=1), self._start(max_num_hands=1)
         self._had_hand = self._second_tracked = False
         self._first_box = None
-        self._since_search = 0
+        self._since_search = self._last_count = 0
+        self._since_lost = LOST_SEARCH_FRAMES
 
     def close(self) -> None:
         """Release MediaPipe."""
