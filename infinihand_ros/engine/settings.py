@@ -44,7 +44,8 @@ OFFLINE_BA: Final[dict[str, Any]] = {'bundle_adjustment': True,
 PROFILES: Final[dict[str, dict[str, Any]]] = {
     'live': {},
     'teleop': {'camera_motion': 'static', 'hands.egocentric': False},
-    'offline': {'mode': 'windowed', 'lens_warmup': 'first', **OFFLINE_BA},
+    'offline': {'mode': 'windowed', 'lens_warmup': 'first', 'hands.ray_passes': 8,
+                **OFFLINE_BA},
     'synthetic': {'hands.source': 'infinihand'},
 }
 PROFILE_HELP: Final = {

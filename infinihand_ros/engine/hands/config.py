@@ -47,9 +47,10 @@ class HandsConfig:
     refine_iterations: int = parameter(0, 'L-BFGS steps refining the MANO fit of each MediaPipe '
                                        'hand after the closed-form start (0: none).', 0, 1000)
     ray_passes: int = parameter(
-        8, "Passes turning a lifted MediaPipe hand's bones towards its landmarks' viewing rays "
+        2, "Passes turning a lifted MediaPipe hand's bones towards its landmarks' viewing rays "
         '(each kept only where it lowers the pixel error): more make the written joints land '
-        'closer to the hand in the image, at about 1 ms per pass and hand.', 0, 100)
+        'closer to the hand in the image, at 1-2 ms per pass and hand (the offline profile '
+        'takes 8).', 0, 100)
     scene_cut_distance: float = parameter(
         0.3, "MediaPipe's hand tracking restarts when two consecutive images' hue-saturation "
         'histograms differ by more than this Bhattacharyya distance, also once the second is '

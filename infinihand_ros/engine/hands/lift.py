@@ -124,7 +124,7 @@ def _lateral_translation(lateral_joints: np.ndarray, z: np.ndarray, centred: np.
 def lift_hand(side: int, landmarks_px: np.ndarray, joints_metric: np.ndarray,
               confidence: float, intrinsics: Intrinsics, model: HandModel,
               previous: ManoParams | None = None, refine_iterations: int = 0,
-              ray_passes: int = 8) -> LiftedHand:
+              ray_passes: int = 2) -> LiftedHand:
     """Return the camera-space MANO hand of one detection.
 
     Args:
