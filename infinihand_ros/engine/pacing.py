@@ -49,7 +49,7 @@ class PacingConfig:
 
     utilisation: float = 0.7
     relax: float = 0.85
-    max_geometry_interval: int = 8
+    max_geometry_interval: int = 16
 
     def __post_init__(self) -> None:
         for name in ('utilisation', 'relax'):
