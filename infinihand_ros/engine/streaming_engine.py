@@ -11,8 +11,8 @@ corrections), to the BA backend (``ba_backend.py``), has its hands placed in the
 (``world_placement.py``) and passes the output stage (``output/``). The depth head runs only
 where a depth is used. A fixed camera with hands from outside the model runs no geometry
 branch once its lens is known (``stream_lens.py``, ``lens_warmup.py``). A hand source that
-reads images (MediaPipe) does so in its own thread, in push order (``hands/reader.py``); a live
-caller can start it when the image arrives (``detect_ahead``).
+reads images (MediaPipe) does so in its own thread, in push order (``hands/reader.py``); for a
+fixed camera a live caller can start it when the image arrives (``detect_ahead``).
 
 Threading contract: one caller at a time. ``push``, ``flush``, ``reset``, ``catch_up`` and
 ``close`` raise ``EngineStateError`` when called while another thread is inside one of them, and
@@ -258,13 +258,13 @@ class StreamingEngine:
 
     @property
     def detects_ahead(self) -> bool:
-        """Return whether ``detect_ahead`` starts anything (per-frame mode, MediaPipe hands)."""
-        return self._reader is not None and self.config.mode == 'per_frame'
+        """Return whether ``detect_ahead`` starts anything (a fixed camera, MediaPipe hands)."""
+        return self.static and self._reader is not None
 
     def detect_ahead(self, image: np.ndarray, timestamp_ns: int) -> bool:
         """Start reading the hands of an image that will be pushed next; return whether it did.
 
-        For a live caller (``detects_ahead``): call it when the image
+        For a live caller with a fixed camera (``detects_ahead``): call it when the image
         arrives, from any thread, then ``push`` it as usual; its hand source's detection has
         been running since (in order with the other images'). Detections of images never
         pushed (replaced by newer ones) are dropped at the next push. An image not newer than

@@ -4,9 +4,9 @@ A thin adapter: message -> ``image_decoding`` / ``camera_info_pairing`` -> ``Str
 (estimation and the output stage every consumer shares) -> ``OutputPublishers``. The image
 callbacks only put the message into a one-frame mailbox (``LatestFrameSlot``); a dedicated
 inference thread takes the newest one, so frames arriving while the model is busy are dropped and
-counted and the latency never grows. With MediaPipe hands the callback also decodes the image
-and starts its hand detection at once (``StreamingEngine.detect_ahead``), so it runs while the
-last frame is still being finished. A bad
+counted and the latency never grows. With a fixed camera and MediaPipe hands (the teleop case) the
+callback also decodes the image and starts its hand detection at once
+(``StreamingEngine.detect_ahead``), so it runs while the last frame is still being finished. A bad
 frame (encoding, size, truncated data, bad CameraInfo) is logged, throttled, counted and skipped;
 so is an image whose stamp is not after the last accepted image's (late or repeated: the engine
 needs increasing stamps), checked before it can replace a waiting frame and again before it is
