@@ -55,12 +55,14 @@ class LensWarmup:
         self._running: Future | None = None
         self._worker: ThreadPoolExecutor | None = None
         self.settled: Intrinsics | None = None
+        self.offered = False  # a frame without intrinsics came (the estimation started)
 
     def lens(self, image: np.ndarray) -> tuple[Intrinsics, bool]:
         """Offer a frame for prediction; return the lens for it and whether it is provisional.
 
         The frame is predicted in the worker thread if that is idle and the lens is not settled.
         """
+        self.offered = True
         if not self._beside:
             if self.settled is None:
                 self._run(image)
@@ -86,6 +88,7 @@ class LensWarmup:
         with self._lock:
             self._predicted = []
             self.settled = None
+            self.offered = False
 
     def drain(self) -> None:
         """Wait for a prediction still running (its result is kept)."""

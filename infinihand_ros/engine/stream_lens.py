@@ -41,8 +41,8 @@ class StreamLens:
 
     @property
     def provisional(self) -> bool:
-        """Return whether a fixed camera's lens is still being estimated (not settled yet)."""
-        return self._warmup is not None and self.fixed is None
+        """Return whether a fixed camera's lens is being estimated (frames came without one)."""
+        return self._warmup is not None and self._warmup.offered and self.fixed is None
 
     def reset(self) -> None:
         """Start a new stream: no lens held."""

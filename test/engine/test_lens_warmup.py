@@ -37,6 +37,7 @@ def test_beside_answers_at_once_and_settles_on_the_median():
 
     warmup = LensWarmup(predict, wanted=3, beside=True)
     try:
+        assert not warmup.offered  # nothing asked for yet (a camera with CameraInfo)
         lens, provisional = warmup.lens(_image(0))  # the worker is busy with this one
         assert provisional and lens == nominal_intrinsics(WIDTH, HEIGHT)
         assert warmup.lens(_image(1)) == (nominal_intrinsics(WIDTH, HEIGHT), True)
@@ -52,7 +53,7 @@ def test_beside_answers_at_once_and_settles_on_the_median():
         assert warmup.lens(_image(4)) == (warmup.settled, False)
         assert seen == [0, 2, 3]  # busy: frame 1 was not predicted
         warmup.reset()
-        assert warmup.settled is None
+        assert warmup.settled is None and not warmup.offered
     finally:
         warmup.close()
 
