@@ -105,13 +105,12 @@ class Pacer:
         self.paced = interval == 'auto' and applies
         self._config = config
         self._lag = lag
-        self._start = START_INTERVAL if interval == 'auto' else int(interval)
         self._frames: deque[float] = deque(maxlen=WINDOW)
         self._geometry: deque[float] = deque(maxlen=WINDOW)
         self._arrivals: deque[int] = deque(maxlen=WINDOW + 1)
         self._pushed: deque[int] = deque(maxlen=WINDOW + 1)
         self._lock = threading.Lock()  # geometry costs come from the engine's worker thread
-        self.interval = self._start
+        self.interval = START_INTERVAL if interval == 'auto' else int(interval)
 
     def reset(self) -> None:
         """Start a new stream: its frame period is measured again (the costs are kept)."""
@@ -158,11 +157,15 @@ class Pacer:
         with self._lock:
             return self._state()
 
-    def _state(self) -> PacingState:
-        """Return what was measured and chosen (the lock held)."""
+    def _costs(self) -> tuple[float | None, float | None, float | None]:
+        """Return the median frame and geometry costs and the frame period, s (lock held)."""
         frame = statistics.median(self._frames) if self._frames else None
         geometry = statistics.median(self._geometry) if self._geometry else None
-        period = self._period_s()
+        return frame, geometry, self._period_s()
+
+    def _state(self) -> PacingState:
+        """Return what was measured and chosen (the lock held)."""
+        frame, geometry, period = self._costs()
         use = (None if None in (frame, geometry, period)
                else (frame + geometry / self.interval) / period)
         return PacingState(self.paced, self.interval, self.lag,
@@ -175,12 +178,10 @@ class Pacer:
         if (not self.paced or len(self._frames) < MIN_SAMPLES
                 or len(self._geometry) < MIN_SAMPLES):
             return
-        period = self._period_s()
-        if period is None:
-            return
-        self.interval = choose_interval(
-            statistics.median(self._frames), statistics.median(self._geometry), period,
-            self.interval, self._config)
+        frame, geometry, period = self._costs()
+        if period is not None:
+            self.interval = choose_interval(frame, geometry, period, self.interval,
+                                            self._config)
 
 
 def choose_interval(frame_s: float, geometry_s: float, period_s: float, current: int,
@@ -193,17 +194,11 @@ def choose_interval(frame_s: float, geometry_s: float, period_s: float, current:
     """
     budget = config.utilisation * period_s
     largest = config.max_geometry_interval
-
-    def fits(k: int, share: float) -> bool:
-        return frame_s + geometry_s / k <= share * budget
-
     spare = budget - frame_s
     needed = largest if spare <= 0.0 else max(1, math.ceil(geometry_s / spare - 1e-9))
     needed = min(needed, largest)
     if needed >= current:
         return needed
     # Going down: the smallest interval that fits with the hysteresis margin, not below needed.
-    for k in range(needed, current):
-        if fits(k, config.relax):
-            return k
-    return current
+    return next((k for k in range(needed, current)
+                 if frame_s + geometry_s / k <= config.relax * budget), current)

@@ -53,8 +53,7 @@ class StreamLens:
     def close(self) -> None:
         """Stop a fixed camera's lens estimation."""
         if self._warmup is not None:
-            self._warmup.drain()
-            self._warmup.close()
+            self._warmup.close()  # waits for a prediction still running
 
     def static_lens(self, image: np.ndarray) -> tuple[Intrinsics, bool] | None:
         """Return a fixed camera's lens for a frame, and whether it is provisional.
