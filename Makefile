@@ -20,9 +20,13 @@ PYTEST_ARGS ?=
 demo: $(BUILD_STAMP)
 	$(ENV) python -m infinihand_ros.demo --out $(DEMO_OUT)
 
+# Tests in two passes: those that need no ROS graph on both cores (pytest-xdist), then the ROS ones
+# (live nodes, timed streams) alone, one at a time.
+COLCON_TEST := colcon test --base-paths . --event-handlers console_direct+ --return-code-on-test-failure
+
 test: $(BUILD_STAMP)
-	$(ENV) colcon test --base-paths . --event-handlers console_direct+ \
-	  --return-code-on-test-failure --pytest-args $(PYTEST_ARGS)
+	$(ENV) $(COLCON_TEST) --pytest-args -n 2 --ros-tests skip $(PYTEST_ARGS)
+	$(ENV) $(COLCON_TEST) --pytest-args --ros-tests only $(PYTEST_ARGS)
 
 venv: $(VENV_STAMP)
 

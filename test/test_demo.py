@@ -13,6 +13,7 @@ MIN_RECEIVED = 140
 
 
 @pytest.mark.slow
+@pytest.mark.ros
 def test_demo_regenerates_the_sample_bag_and_evaluates(tmp_path: Path,
                                                        capsys: pytest.CaptureFixture) -> None:
     out = tmp_path / 'demo'

@@ -115,6 +115,16 @@ def test_ba_state() -> None:
     assert ba_state({'ba': None}) == 'off'
 
 
+def test_in_process_ba_calls_are_counted() -> None:
+    """The in-process worker's submitted and finished calls are values (0 without BA)."""
+    ba = {'state': 'idle', 'submitted': 5, 'done': 4, 'folded_in': 3}
+    values = dict(diagnostic_report(RUNNING, {**ENGINE, 'ba': ba}, 5.0, RUNNING).values)
+    assert (values['ba_calls_submitted'], values['ba_calls_done'],
+            values['ba_results_applied']) == ('5', '4', '3')
+    values = dict(diagnostic_report(RUNNING, ENGINE, 5.0, RUNNING).values)
+    assert (values['ba_calls_submitted'], values['ba_calls_done']) == ('0', '0')
+
+
 def test_an_absent_or_lost_ba_node_warns_and_counts_show() -> None:
     """Node link 'waiting' or 'lost': WARN saying poses are unrefined; counters as values."""
     for state, text in (('waiting', 'not seen yet'), ('lost', 'lost')):

@@ -93,8 +93,12 @@ def _worker_processes(node: subprocess.Popen, timeout_s: float = 60.0) -> dict[i
 
 
 def _replay(env: dict[str, str], log: Path) -> None:
-    """Replay the sample bag's camera topics in real time (the node drops what it cannot take)."""
-    replay = start('replay', [str(SAMPLE_BAG), '--rate', '1', '--wait-for-subscribers', '20',
+    """Replay the sample bag's camera topics at half speed (5 Hz).
+
+    The node drops what it cannot take; at 5 Hz it takes enough of them, on a slow or loaded
+    machine too, for its keyframe pool to select keyframes for BA.
+    """
+    replay = start('replay', [str(SAMPLE_BAG), '--rate', '0.5', '--wait-for-subscribers', '20',
                               '--delay', '1', '--topics', '/camera/image_raw/compressed',
                               '/camera/camera_info'], env, log)
     assert replay.wait(120) == 0, log.read_text()
@@ -122,9 +126,8 @@ def test_sigint_stops_the_ba_worker_with_the_node(tmp_path: Path) -> None:
                    for _, _, msg in reader.messages(['/diagnostics']) for status in msg.status
                    if status.name.endswith(': estimator')]
     states = [report['ba_state'] for report in reports]
-    applied = max(int(report['ba_results_applied']) for report in reports)
-    # A pool selection went to BA: seen running at a diagnostics period, or its result applied.
-    assert 'running' in states or applied > 0, states
+    # A pool selection went to BA (a call may start and end between two diagnostics periods).
+    assert int(reports[-1]['ba_calls_submitted']) > 0, reports[-1]
     assert not {'off', 'failed'} & set(states), states
 
 

@@ -118,6 +118,8 @@ def diagnostic_report(snapshot: StatisticsSnapshot, engine_statistics: dict[str,
         ('metric_scale', engine_statistics.get('metric_scale', float('nan'))),
         ('metric_scale_state', engine_statistics.get('metric_scale_state', 'unknown')),
         ('pose_version', engine_statistics.get('pose_version', 0)), ('ba_state', state),
+        ('ba_calls_submitted', _ba_count(engine_statistics, 'submitted')),
+        ('ba_calls_done', _ba_count(engine_statistics, 'done')),
         ('ba_results_applied', _ba_count(engine_statistics, 'folded_in')),
         ('ba_outages', _ba_count(engine_statistics, 'outages')),
         *((f'intrinsics_from_{source}', snapshot.intrinsics_sources.get(source, 0))
