@@ -297,10 +297,12 @@ def frame_result_to_msg(typestore: Typestore, result: FrameResult, frame_id: str
         frame_index=_check_uint32(result.frame_index, 'frame_index'),
         camera_pose=pose_to_msg(typestore, result.camera_pose),
         k=intrinsics.matrix().reshape(-1),
+        intrinsics_provisional=bool(result.provisional_intrinsics),
         width=_check_uint32(intrinsics.width, 'image width'),
         height=_check_uint32(intrinsics.height, 'image height'),
         metric_scale=float(result.metric_scale),
         is_keyframe=bool(result.is_keyframe),
+        tracking=str(result.tracking),
         hands=[hand_to_msg(typestore, hand) for hand in result.hands])
 
 
@@ -320,7 +322,10 @@ def msg_to_frame_result(msg: Msg) -> FrameResult:
         intrinsics=Intrinsics.from_matrix(k, int(msg.width), int(msg.height)),
         hands=tuple(msg_to_hand(hand) for hand in msg.hands),
         is_keyframe=bool(msg.is_keyframe),
-        metric_scale=float(msg.metric_scale))
+        metric_scale=float(msg.metric_scale),
+        # HandFrames recorded before these two fields existed read with their defaults.
+        tracking=str(getattr(msg, 'tracking', '') or FrameResult.tracking),
+        provisional_intrinsics=bool(getattr(msg, 'intrinsics_provisional', False)))
 
 
 def keyframe_poses_to_msg(typestore: Typestore, update: KeyframePoseUpdate, frame_id: str,

@@ -56,7 +56,9 @@ def random_frame(rng: np.random.Generator, frame_index: int = 7) -> FrameResult:
             *rng.uniform(200.0, 400.0, size=4), width=IMAGE_WIDTH, height=IMAGE_HEIGHT),
         hands=(random_hand(rng, LEFT, with_world=True), random_hand(rng, RIGHT, with_world=False)),
         is_keyframe=bool(frame_index % 2),
-        metric_scale=float(rng.uniform(0.5, 2.0)))
+        metric_scale=float(rng.uniform(0.5, 2.0)),
+        tracking=('tracked', 'predicted', 'reinitialised', 'static')[frame_index % 4],
+        provisional_intrinsics=frame_index % 3 == 0)
 
 
 def random_keyframes(rng: np.random.Generator, count: int = 3) -> KeyframePoseUpdate:
@@ -106,6 +108,8 @@ def assert_frame_equal(got: FrameResult, want: FrameResult) -> None:
     assert got.is_keyframe == want.is_keyframe
     assert got.metric_scale == want.metric_scale
     assert got.intrinsics == want.intrinsics
+    assert got.tracking == want.tracking
+    assert got.provisional_intrinsics == want.provisional_intrinsics
     assert_pose_close(got.camera_pose, want.camera_pose)
     assert len(got.hands) == len(want.hands)
     for got_hand, want_hand in zip(got.hands, want.hands):

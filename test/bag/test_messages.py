@@ -3,6 +3,7 @@
 from collections.abc import Callable
 import dataclasses
 from pathlib import Path
+import shutil
 
 from bag_builders import assert_frame_equal
 from bag_builders import assert_keyframes_equal
@@ -20,10 +21,12 @@ from infinihand_ros.bag.messages import msg_to_pose
 from infinihand_ros.bag.messages import ns_from_stamp
 from infinihand_ros.bag.messages import pose_to_msg
 from infinihand_ros.bag.messages import stamp_from_ns
+from infinihand_ros.bag.typestore import build_typestore
 from infinihand_ros.bag.typestore import HAND_FRAME_MSG
 from infinihand_ros.bag.typestore import HAND_MSG
 from infinihand_ros.bag.typestore import IMAGE_MSG
 from infinihand_ros.bag.typestore import KEYFRAME_POSES_MSG
+from infinihand_ros.bag.typestore import msg_schema_dir
 from infinihand_ros.bag.typestore import POSE_STAMPED_MSG
 from infinihand_ros.core import geometry
 from infinihand_ros.core import topics
@@ -219,6 +222,29 @@ def test_mcap_bag_round_trip_without_a_typestore_on_read(
         np.testing.assert_array_equal(msg.data.reshape(msg.height, msg.width, 3), image)
     (keyframes_msg,) = decoded[KEYFRAMES_TOPIC]
     assert_keyframes_equal(msg_to_keyframe_poses(keyframes_msg), update)
+
+
+def test_a_hand_frame_of_the_earlier_definition_reads_with_default_flags(
+        tmp_path: Path, typestore: Typestore, make_frame: MakeFrame) -> None:
+    """A HandFrame recorded before ``intrinsics_provisional`` and ``tracking``: their defaults."""
+    schemas = tmp_path / 'msg'
+    shutil.copytree(msg_schema_dir(), schemas)
+    hand_frame = schemas / 'HandFrame.msg'
+    hand_frame.write_text('\n'.join(
+        line for line in hand_frame.read_text().splitlines()
+        if line not in ('bool intrinsics_provisional', 'string tracking')) + '\n')
+    earlier = build_typestore(schemas)
+    assert earlier.hash_rihs01(HAND_FRAME_MSG) != typestore.hash_rihs01(HAND_FRAME_MSG)
+    frame = make_frame(3)  # provisional lens, tracking 'reinitialised'
+    current = frame_result_to_msg(typestore, frame, WORLD_FRAME)
+    fields = {name: getattr(current, name) for name in current.__dataclass_fields__
+              if name not in ('intrinsics_provisional', 'tracking')}
+    msg_class = earlier.types[HAND_FRAME_MSG]
+    raw = earlier.serialize_cdr(msg_class(**fields), HAND_FRAME_MSG)
+    decoded = msg_to_frame_result(earlier.deserialize_cdr(raw, HAND_FRAME_MSG))
+    assert (decoded.tracking, decoded.provisional_intrinsics) == ('predicted', False)
+    assert_frame_equal(decoded, dataclasses.replace(frame, tracking='predicted',
+                                                    provisional_intrinsics=False))
 
 
 def test_hand_with_only_one_world_field_raises(
