@@ -161,6 +161,11 @@ def test_tf_hands_and_a_consumer_live_and_replayed(tmp_path: Path) -> None:
 
     frames = _by_stamp(live[HANDS])
     assert sorted(frames) == sorted(poses)
+    # How each pose was found, and the lens: the sample bag's moving camera is tracked, and its
+    # CameraInfo's lens is never provisional.
+    tracking = [frame.tracking for frame in frames.values()]
+    assert set(tracking) <= {'tracked', 'predicted', 'reinitialised'} and 'tracked' in tracking
+    assert not any(frame.intrinsics_provisional for frame in frames.values())
     landmarks = _by_stamp(live[f'{NODE}/hands/right/landmarks'])
     in_wrist = _by_stamp(live[f'{NODE}/hands/right/wrist_frame_landmarks'])
     right_wrists = _by_stamp(live[f'{NODE}/hands/right/wrist_pose'])
