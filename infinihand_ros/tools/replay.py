@@ -25,6 +25,7 @@ from infinihand_ros.core.errors import BagError
 from infinihand_ros.core.units import NS_PER_S
 from infinihand_ros.ros.node_process import use_package_dds_profile
 import rclpy
+from rclpy.duration import Duration
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rosbags.highlevel import AnyReader
@@ -37,6 +38,8 @@ EXIT_USAGE: Final = 2
 REMAP_SEPARATOR: Final = ':='
 #: Replayed topics: reliable (reaches best-effort and reliable subscribers alike), a few deep.
 REPLAY_QOS: Final = QoSProfile(depth=10)
+#: Longest wait (s) at the end for the subscribers to acknowledge the last messages.
+FLUSH_S: Final = 5.0
 POLL_S: Final = 0.05
 
 
@@ -153,6 +156,17 @@ class Replayer:
             count += 1
         return count
 
+    def flush(self, timeout_s: float) -> bool:
+        """Wait up to ``timeout_s`` for the subscribers to acknowledge what was published.
+
+        A process that exits right after publishing can take its last messages with it; return
+        whether every publisher's were acknowledged in time.
+        """
+        deadline = time.monotonic() + timeout_s
+        return all(publisher.wait_for_all_acked(
+            Duration(seconds=max(0.0, deadline - time.monotonic())))
+            for publisher in [*self.publishers.values(), *([self.clock] if self.clock else [])])
+
 
 def replay(options: ReplayOptions) -> int:
     """Replay the bag; return the number of messages published."""
@@ -167,6 +181,9 @@ def replay(options: ReplayOptions) -> int:
                 total += replayer.play_once()
                 if not options.loop:
                     break
+            if rclpy.ok() and not replayer.flush(FLUSH_S):
+                node.get_logger().warning(f'some subscribers did not acknowledge the last '
+                                          f'messages within {FLUSH_S:.0f} s')
     finally:
         node.destroy_node()
     return total
