@@ -323,7 +323,7 @@ def msg_to_frame_result(msg: Msg) -> FrameResult:
         hands=tuple(msg_to_hand(hand) for hand in msg.hands),
         is_keyframe=bool(msg.is_keyframe),
         metric_scale=float(msg.metric_scale),
-        # HandFrames recorded before these two fields existed read with their defaults.
+        # Fields absent (HandFrames of the earlier definition) or left empty: the defaults.
         tracking=str(getattr(msg, 'tracking', '') or FrameResult.tracking),
         provisional_intrinsics=bool(getattr(msg, 'intrinsics_provisional', False)))
 
